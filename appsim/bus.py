@@ -1,0 +1,408 @@
+"""A CAN bus on the simulated clock: arbitration, ACK, error frames and fault confinement, frame by frame.
+
+A frame holds the bus for its exact stuffed length plus intermission at the bus bit rate; who wins,
+who ACKs and who flags an error is decided at SOF from each node's mode, error state and bit timing.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+from appsim.bits import INTERMISSION_BITS, frame_bits
+from appsim.bittiming import BitTiming, BitTimingError
+from appsim.ecan import registers as R
+from appsim.ecan.controller import ECAN, Mode
+from appsim.frame import CanFrame
+from appsim.mcu import PIC18F8680
+from appsim.sim import PS_PER_SECOND, Simulator, Timer
+
+ERROR_FLAG_BITS = 6
+ERROR_DELIMITER_BITS = 8
+SUSPEND_TRANSMISSION_BITS = 8
+BUS_IDLE_BITS = 11                  # mode changes, bus-off recovery: 11 consecutive recessive bits
+DESTROYED_AT_BIT = 10               # where a node at the wrong bit rate typically flags a stuff error
+
+
+@dataclass(frozen=True, slots=True)
+class BusEvent:
+    """One entry of the bus trace: a frame that went through, or one that ended in an error frame."""
+
+    start_ps: int
+    end_ps: int                      # end of EOF (frame) or of the error delimiter (error)
+    sender: str
+    frame: CanFrame
+    acked_by: tuple[str, ...] = ()
+    error: str = ""                  # "" for a good frame, else what went wrong, in CAN terms
+    received: tuple[tuple[str, str], ...] = ()   # (node, what its acceptance logic did)
+
+    @property
+    def ok(self) -> bool:
+        return not self.error
+
+    def __str__(self) -> str:
+        time = f"{self.start_ps / PS_PER_SECOND:12.6f}"
+        if self.error:
+            return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}"
+        acks = ",".join(self.acked_by) or "-"
+        return f"{time}  {self.sender:>10}  {self.frame}  ACK by {acks}"
+
+
+@dataclass(eq=False)
+class _Port:
+    """A node's attachment to the bus."""
+
+    mcu: PIC18F8680
+    rate_ok: bool = True
+    suspend_until: int = 0
+    loop_busy_until: int = 0
+    mode_timer: Timer | None = None
+
+    @property
+    def ecan(self) -> ECAN:
+        return self.mcu.ecan
+
+    @property
+    def name(self) -> str:
+        return self.mcu.name
+
+
+def oscillator_tolerance(timing: BitTiming) -> Fraction:
+    """The largest bit-rate deviation a node tolerates (CAN 2.0: min of the SJW and phase-segment limits)."""
+    n, ps2 = timing.tq_per_bit, timing.effective_seg2ph
+    return min(Fraction(timing.sjw, 20 * n),
+               Fraction(min(timing.seg1ph, ps2), 2 * (13 * n - ps2)))
+
+
+class Bus:
+    """The wire and its protocol engine: every attached node's ECAN is driven from here."""
+
+    def __init__(self, sim: Simulator, bit_rate: int = 125_000):
+        if PS_PER_SECOND % bit_rate:
+            raise ValueError(f"a bus bit rate of {bit_rate} bit/s has no whole bit time in picoseconds")
+        self.sim = sim
+        self.bit_rate = bit_rate
+        self.bit_ps = PS_PER_SECOND // bit_rate
+        sim.quantum_ps = max(sim.quantum_ps, self.bit_ps)
+        self.ports: list[_Port] = []
+        self._by_ecan: dict[int, _Port] = {}
+        self.trace: list[BusEvent] = []
+        self.loopback_trace: list[BusEvent] = []
+        self.busy_until = 0          # end of the intermission after the last frame or error frame
+        self._arbitration: Timer | None = None
+        self._idle_timer: Timer | None = None
+
+    # ------------------------------------------------------------------ nodes
+    def attach(self, mcu: PIC18F8680) -> PIC18F8680:
+        port = _Port(mcu)
+        self.ports.append(port)
+        self._by_ecan[id(mcu.ecan)] = port
+        mcu.ecan.listener = self
+        return mcu
+
+    def node(self, name: str) -> PIC18F8680:
+        for port in self.ports:
+            if port.name == name:
+                return port.mcu
+        raise KeyError(f"no node named {name!r} on this bus")
+
+    def _rate_ok(self, port: _Port) -> bool:
+        ecan = port.ecan
+        try:
+            timing = BitTiming.from_registers(ecan.get("BRGCON1"), ecan.get("BRGCON2"), ecan.get("BRGCON3"))
+        except BitTimingError:
+            return False
+        if timing.problems():
+            return False
+        error = abs(timing.bit_rate(port.mcu.fosc) - self.bit_rate) / self.bit_rate
+        return error <= oscillator_tolerance(timing)
+
+    def _node_bit_ps(self, port: _Port) -> int:
+        ecan = port.ecan
+        timing = BitTiming.from_registers(ecan.get("BRGCON1"), ecan.get("BRGCON2"), ecan.get("BRGCON3"))
+        return timing.bit_time_ps(port.mcu.fosc)
+
+    # ------------------------------------------------------------------ what the ECAN asks for
+    def mode_requested(self, ecan: ECAN) -> None:
+        port = self._by_ecan[id(ecan)]
+        if port.mode_timer is None:
+            port.mode_timer = self.sim.call_at(
+                max(self.sim.now + 2 * port.mcu.tcy_ps, self.busy_until), lambda: self._change_mode(port))
+
+    def _change_mode(self, port: _Port) -> None:
+        """OPMODE follows REQOP once the bus is idle (a frame in progress is finished first)."""
+        port.mode_timer = None
+        if self.busy_until > self.sim.now:
+            port.mode_timer = self.sim.call_at(self.busy_until, lambda: self._change_mode(port))
+            return
+        port.ecan.enter_requested_mode()
+        if port.ecan.opmode in (Mode.NORMAL, Mode.LISTEN_ONLY):
+            port.rate_ok = self._rate_ok(port)
+        port.mcu.changed()
+        self.transmit_requested(port.ecan)
+
+    def transmit_requested(self, ecan: ECAN) -> None:
+        port = self._by_ecan[id(ecan)]
+        if ecan.opmode == Mode.LOOPBACK:
+            self._loopback(port)
+        elif ecan.opmode == Mode.NORMAL:
+            self._schedule_arbitration(max(self.sim.now, self.busy_until, port.suspend_until))
+
+    # ------------------------------------------------------------------ loopback: off the bus
+    def _loopback(self, port: _Port) -> None:
+        """TX buffer -> MAB -> filters -> RX buffer, at the node's own bit rate, never on the bus."""
+        ecan = port.ecan
+        buffer = ecan.next_transmission()
+        if buffer is None or ecan.on_wire is not None or port.loop_busy_until > self.sim.now:
+            return
+        frame = ecan.frame_in(buffer)
+        ecan.transmission_started(buffer)
+        start = self.sim.now
+        end = start + frame_bits(frame) * self._node_bit_ps(port)
+        port.loop_busy_until = end + INTERMISSION_BITS * self._node_bit_ps(port)
+
+        def done() -> None:
+            ecan.transmission_succeeded(buffer)       # the ACK comes from the module itself
+            reception = ecan.frame_received(frame)
+            self.loopback_trace.append(BusEvent(start, end, port.name, frame, (port.name,), "",
+                                                ((port.name, str(reception)),)))
+            port.mcu.changed()
+            self.sim.call_at(port.loop_busy_until, lambda: self._loopback(port))
+
+        self.sim.call_at(end, done)
+
+    # ------------------------------------------------------------------ on the bus
+    def _schedule_arbitration(self, time: int) -> None:
+        if self._arbitration is not None and not self._arbitration.cancelled:
+            if self._arbitration.time <= time:
+                return
+            self._arbitration.cancel()
+        self._arbitration = self.sim.call_at(time, self._start_of_frame)
+
+    def _on_bus(self, port: _Port, *modes: Mode) -> bool:
+        return port.ecan.opmode in modes and not port.ecan.bus_off
+
+    def _start_of_frame(self) -> None:
+        """SOF: the pending frames arbitrate; the outcome of the winner's frame is fixed here."""
+        self._arbitration = None
+        now = self.sim.now
+        if self.busy_until > now:
+            self._schedule_arbitration(self.busy_until)
+            return
+        contenders, waiting = [], []
+        for port in self.ports:
+            if not self._on_bus(port, Mode.NORMAL):
+                continue
+            buffer = port.ecan.next_transmission()
+            if buffer is None:
+                continue
+            (contenders if port.suspend_until <= now else waiting).append(port)
+        if not contenders:
+            if waiting:
+                self._schedule_arbitration(min(p.suspend_until for p in waiting))
+            return
+        self._account_idle(now)
+        self._wake_disabled_nodes()
+        entries = []
+        for port in contenders:
+            buffer = port.ecan.next_transmission()
+            frame = port.ecan.frame_in(buffer)
+            port.ecan.transmission_started(buffer)
+            entries.append((_arbitration_key(frame), port, buffer, frame))
+        entries.sort(key=lambda e: e[0])
+        key, sender, buffer, frame = entries[0]
+        for loser_key, port, lost_buffer, _ in entries[1:]:
+            if loser_key == key:
+                continue   # same identifier: both keep sending; settled below as a collision
+            lost_at = now + _first_difference(key, loser_key) * self.bit_ps
+            self.sim.call_at(lost_at, lambda p=port, b=lost_buffer: self._lose(p, b))
+        same_id = [e for e in entries[1:] if e[0] == key]
+        self._transmit(now, sender, buffer, frame, same_id)
+
+    def _lose(self, port: _Port, buffer: str) -> None:
+        port.ecan.arbitration_lost(buffer)
+        port.mcu.changed()
+
+    def _transmit(self, start: int, sender: _Port, buffer: str, frame: CanFrame,
+                  same_id: list[tuple[int, _Port, str, CanFrame]]) -> None:
+        bits = frame_bits(frame)
+        others = [p for p in self.ports if p is not sender and all(p is not e[1] for e in same_id)]
+        listeners = [p for p in others if self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
+        if not sender.rate_ok:
+            # Nobody at the bus bit rate can read this frame: every active node flags it.
+            flaggers = [p for p in listeners if p.rate_ok and p.ecan.opmode == Mode.NORMAL
+                        and not p.ecan.error_passive]
+            if flaggers:
+                self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
+                                  "sent at the wrong bit rate: the other nodes flagged it",
+                                  flaggers, listeners, tec_increment=8)
+                return
+        wrong_rate = [p for p in listeners if not p.rate_ok]
+        destroyers = [p for p in wrong_rate if p.ecan.opmode == Mode.NORMAL and not p.ecan.error_passive]
+        if destroyers and sender.rate_ok:
+            self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
+                              f"destroyed by error flags of {', '.join(p.name for p in destroyers)} "
+                              "(bit timing does not match the bus)", destroyers, listeners, tec_increment=8)
+            return
+        if same_id and any(e[3] != frame for e in same_id):
+            colliders = [e[1] for e in same_id]
+            self._error_frame(start, 13, sender, buffer, frame, "bit error",
+                              f"two nodes sent identifier 0x{frame.can_id:X} at once with different "
+                              f"contents ({', '.join(p.name for p in [sender] + colliders)})",
+                              colliders, listeners, tec_increment=8, also_failed=same_id)
+            return
+        good = [p for p in listeners if p.rate_ok]
+        ackers = tuple(p.name for p in good if p.ecan.opmode == Mode.NORMAL)
+        if not ackers:
+            self._ack_error(start, bits, sender, buffer, frame, good, wrong_rate)
+            return
+        end = start + bits * self.bit_ps
+        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
+
+        def end_of_frame() -> None:
+            received = []
+            for port in good:
+                received.append((port.name, str(port.ecan.frame_received(frame))))
+                port.mcu.changed()
+            self._flag_wrong_rate(wrong_rate, echo=False)
+            for _, port, twin, _ in [(None, sender, buffer, None)] + same_id:
+                port.ecan.transmission_succeeded(twin)
+                self._after_transmit(port)
+            self.trace.append(BusEvent(start, end, sender.name, frame, ackers, "", tuple(received)))
+            self._bus_idle()
+
+        self.sim.call_at(end, end_of_frame)
+
+    def _ack_error(self, start: int, bits: int, sender: _Port, buffer: str, frame: CanFrame,
+                   good: list[_Port], wrong_rate: list[_Port]) -> None:
+        """Nobody ACKed. An error-active sender's flag makes the frame invalid for everyone; an
+        error-passive sender's recessive flag leaves it valid for receivers, and its TEC unchanged."""
+        passive = sender.ecan.error_passive
+        flag_start = start + (bits - 8) * self.bit_ps          # the ACK delimiter
+        end = flag_start + (ERROR_FLAG_BITS + ERROR_DELIMITER_BITS) * self.bit_ps
+        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
+
+        def end_of_error() -> None:
+            received = []
+            for port in good:      # listen-only nodes: they never ACK
+                if passive:
+                    received.append((port.name, str(port.ecan.frame_received(frame))))
+                else:
+                    port.ecan.receive_error(rec_increment=0)
+                    received.append((port.name, "form error: active error flag in the ACK delimiter"))
+                port.mcu.changed()
+            self._flag_wrong_rate(wrong_rate, echo=False)
+            sender.ecan.transmission_failed(buffer, tec_increment=0 if passive else 8)
+            self._after_transmit(sender)
+            self.trace.append(BusEvent(start, end, sender.name, frame, (), "ACK error: no node acknowledged",
+                                       tuple(received)))
+            self._bus_idle()
+
+        self.sim.call_at(end, end_of_error)
+
+    def _error_frame(self, start: int, at_bit: int, sender: _Port, buffer: str, frame: CanFrame,
+                     sender_error: str, why: str, flaggers: list[_Port], listeners: list[_Port], *,
+                     tec_increment: int, also_failed: list | None = None) -> None:
+        """The frame is cut at `at_bit` by error flags: 6 dominant bits, echoes, 8-bit delimiter."""
+        flag_bits = 2 * ERROR_FLAG_BITS
+        end = start + (at_bit + flag_bits + ERROR_DELIMITER_BITS) * self.bit_ps
+        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
+
+        def end_of_error() -> None:
+            received = []
+            for port in listeners:
+                if port.ecan.opmode == Mode.NORMAL:
+                    echo = 8 if port in flaggers and not port.rate_ok else 0
+                    port.ecan.receive_error(rec_increment=1 + echo)
+                else:
+                    port.ecan.receive_error(rec_increment=0)
+                received.append((port.name, "error frame"))
+                port.mcu.changed()
+            for port, failed_buffer in [(sender, buffer)] + [(e[1], e[2]) for e in also_failed or []]:
+                port.ecan.transmission_failed(failed_buffer, tec_increment=tec_increment)
+                self._after_transmit(port)
+            self.trace.append(BusEvent(start, end, sender.name, frame, (), f"{sender_error}: {why}",
+                                       tuple(received)))
+            self._bus_idle()
+
+        self.sim.call_at(end, end_of_error)
+
+    def _flag_wrong_rate(self, ports: list[_Port], *, echo: bool) -> None:
+        """Nodes at the wrong bit rate see garbage: an error each frame (listen-only: IRXIF only)."""
+        for port in ports:
+            normal = port.ecan.opmode == Mode.NORMAL
+            port.ecan.receive_error(rec_increment=(1 + (8 if echo else 0)) if normal else 0)
+            port.mcu.changed()
+
+    def _after_transmit(self, port: _Port) -> None:
+        """An error-passive transmitter waits 8 more bits (suspend transmission) before its next SOF."""
+        if port.ecan.error_passive:
+            port.suspend_until = self.busy_until + SUSPEND_TRANSMISSION_BITS * self.bit_ps
+        port.mcu.changed()
+
+    # ------------------------------------------------------------------ idle bus, bus-off recovery
+    def _bus_idle(self) -> None:
+        """After each frame or error frame: one sequence of 11 recessive bits; next SOF if anyone waits."""
+        for port in self.ports:
+            if port.ecan.bus_off:
+                self._recover(port, 1)
+        pending = [p for p in self.ports if self._on_bus(p, Mode.NORMAL) and p.ecan.next_transmission()]
+        if pending:
+            self._schedule_arbitration(max(self.busy_until, min(p.suspend_until for p in pending)))
+        self._start_idle_count()
+
+    def _start_idle_count(self) -> None:
+        if self._idle_timer is not None:
+            self._idle_timer.cancel()
+            self._idle_timer = None
+        if any(p.ecan.bus_off for p in self.ports):
+            self._idle_timer = self.sim.call_at(self.busy_until + BUS_IDLE_BITS * self.bit_ps,
+                                                self._idle_sequence)
+
+    def _idle_sequence(self) -> None:
+        self._idle_timer = None
+        for port in self.ports:
+            if port.ecan.bus_off:
+                self._recover(port, 1)
+        if any(p.ecan.bus_off for p in self.ports):
+            self._idle_timer = self.sim.call_after(BUS_IDLE_BITS * self.bit_ps, self._idle_sequence)
+
+    def _account_idle(self, now: int) -> None:
+        """A SOF ends the idle period: stop counting recessive sequences for bus-off nodes."""
+        if self._idle_timer is not None:
+            self._idle_timer.cancel()
+            self._idle_timer = None
+
+    def _recover(self, port: _Port, sequences: int) -> None:
+        port.ecan.bus_off_recovery(sequences)
+        if not port.ecan.bus_off:
+            port.mcu.changed()
+            self.transmit_requested(port.ecan)
+
+    def _wake_disabled_nodes(self) -> None:
+        """Bus activity sets WAKIF in Disable mode (when WAKIE allows, as DS39500 says)."""
+        for port in self.ports:
+            ecan = port.ecan
+            if ecan.opmode == Mode.DISABLE and ecan.get("PIE3") & R.WAKIF:
+                ecan._setbits("PIR3", R.WAKIF)
+                port.mcu.changed()
+
+    # ------------------------------------------------------------------ reading the trace
+    def frames(self) -> list[BusEvent]:
+        """The frames that went through (ACKed, no error)."""
+        return [event for event in self.trace if event.ok]
+
+
+def _arbitration_key(frame: CanFrame) -> int:
+    """The arbitration field as the wire sends it, left-aligned in 32 bits: lower wins.
+
+    Standard: ID10..0, RTR, IDE=0. Extended: ID28..18, SRR=1, IDE=1, ID17..0, RTR. So at equal base
+    ID a standard data frame beats an extended one, and a data frame beats a remote one.
+    """
+    if frame.extended:
+        return (frame.base_id << 21) | (1 << 20) | (1 << 19) | ((frame.can_id & 0x3FFFF) << 1) | frame.remote
+    return (frame.can_id << 21) | (frame.remote << 20)
+
+
+def _first_difference(a: int, b: int) -> int:
+    """Bits from SOF to the arbitration bit where two keys first differ (SOF is bit 0)."""
+    return 1 + (32 - (a ^ b).bit_length())

@@ -1,0 +1,147 @@
+"""The PIC18F8680 as firmware sees it: special function registers by address and name, time in cycles.
+
+Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
+from the same place in the firmware, with nothing changed since) parks the firmware until a
+peripheral event changes something: a busy-wait costs one loop turn per event, not per cycle.
+"""
+from __future__ import annotations
+
+import sys
+
+from collections.abc import Callable, Iterable
+from typing import Any, Protocol
+
+import greenlet
+
+from appsim.ecan import registers as ecan_registers
+from appsim.ecan.controller import ECAN
+from appsim.sim import PS_PER_SECOND, Process, Simulator
+
+FOSC_HZ = 40_000_000            # APP023: 10 MHz crystal with the 4x PLL
+SFR_ACCESS_CYCLES = 2           # a C statement touching an SFR: MOVFF / MOVF + MOVWF, with banking
+CALL_CYCLES = 10                # CALL/RETURN and argument passing of a C18 library function
+
+
+class Peripheral(Protocol):
+    """Anything on the SFR bus: reads and writes bytes at its addresses."""
+
+    def read(self, address: int) -> int: ...
+    def write(self, address: int, value: int) -> None: ...
+
+
+class NotOnABoard(RuntimeError):
+    """A firmware function was called outside firmware running on a simulated board."""
+
+
+class PIC18F8680:
+    """One microcontroller on the simulated clock, with its ECAN module mapped at F00h..F77h, FA3h..FA5h."""
+
+    def __init__(self, sim: Simulator, name: str = "node", *, fosc: int = FOSC_HZ):
+        self.sim = sim
+        self.name = name
+        self.fosc = fosc
+        self.tcy_ps = 4 * PS_PER_SECOND // fosc
+        self._access_ps = SFR_ACCESS_CYCLES * self.tcy_ps
+        self.ecan = ECAN()
+        self.sfr_addresses: dict[str, int] = {}
+        self._devices: dict[int, Peripheral] = {}
+        self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
+        self.version = 0
+        self._seen: dict[int, int] = {}
+        self._stale_sites: set[tuple[int, tuple]] = set()   # (address, firmware location) polled at `version`
+        self._stale_version = -1
+        self.time_varying: set[int] = set()
+        self.process: Process | None = None
+        self.on_changed: list[Callable[[], None]] = []
+
+    def map(self, device: Peripheral, registers: Iterable[tuple[str, int]]) -> None:
+        """Put a peripheral's registers (name, address) on the SFR bus."""
+        for name, address in registers:
+            self.sfr_addresses[name] = address
+            self._devices[address] = device
+
+    # -------------------------------------------------------------- firmware access
+    def _in_firmware(self) -> Process | None:
+        process = self.process
+        return process if process is not None and greenlet.getcurrent() is process else None
+
+    def read(self, address: int) -> int:
+        process = self._in_firmware()
+        if process is not None:
+            process.spend(self._access_ps)
+            if self._seen.get(address) == self.version and address not in self.time_varying:
+                if self._stale_version != self.version:
+                    self._stale_sites.clear()
+                    self._stale_version = self.version
+                site = (address, _firmware_location())
+                if site in self._stale_sites:
+                    process.park()      # a polling loop: nothing can differ until a peripheral event
+                else:
+                    self._stale_sites.add(site)
+            self._seen[address] = self.version
+        device = self._devices.get(address)
+        return device.read(address) if device is not None else 0
+
+    def write(self, address: int, value: int) -> None:
+        process = self._in_firmware()
+        if process is not None:
+            process.spend(self._access_ps)
+        self.version += 1
+        device = self._devices.get(address)
+        if device is not None:
+            device.write(address, value & 0xFF)
+
+    def address_of(self, name: str) -> int:
+        try:
+            return self.sfr_addresses[name]
+        except KeyError:
+            raise KeyError(f"the PIC18F8680 has no special function register named {name!r}") from None
+
+    def read_name(self, name: str) -> int:
+        return self.read(self.address_of(name))
+
+    def write_name(self, name: str, value: int) -> None:
+        self.write(self.address_of(name), value)
+
+    def spend_cycles(self, cycles: int) -> None:
+        """Time the firmware spends computing (instruction cycles at Fosc/4)."""
+        process = self._in_firmware()
+        if process is not None:
+            process.spend(cycles * self.tcy_ps)
+
+    # -------------------------------------------------------------- hardware side
+    def changed(self) -> None:
+        """A peripheral changed state the firmware can see: wake a parked firmware."""
+        self.version += 1
+        if self.process is not None:
+            self.process.wake()
+        for callback in self.on_changed:
+            callback()
+
+    def run(self, main: Callable[[], Any]) -> Process:
+        """Start firmware `main` on this MCU (after a reset, as programming the chip would)."""
+        if self.process is not None and not self.process.dead:
+            self.process.stop()
+        self.process = self.sim.start(self.name, main, context=self)
+        return self.process
+
+
+def _firmware_location() -> tuple:
+    """Where in the firmware (outside this package) the current access comes from: its call stack."""
+    frame = sys._getframe(2)
+    location = []
+    while frame is not None:
+        if not frame.f_globals.get("__name__", "").startswith("appsim."):
+            location.append((frame.f_code, frame.f_lasti))
+        frame = frame.f_back
+    return tuple(location)
+
+
+def current_mcu() -> PIC18F8680:
+    """The MCU whose firmware is running now (what `CANSendMessage` and friends act on)."""
+    context = getattr(greenlet.getcurrent(), "context", None)
+    if isinstance(context, PIC18F8680):
+        return context
+    raise NotOnABoard(
+        "this is firmware: it runs on a simulated board, from main(). "
+        "Start it with a board's run(main) (or `appsim board FILE`), not by calling it directly.")

@@ -1,0 +1,174 @@
+"""The simulated clock: integer picoseconds, events in (time, order) sequence, firmware as processes.
+
+Deterministic by construction: nothing here reads the wall clock, and ties are broken by the order
+in which things were scheduled. Firmware `main()` loops run as greenlets that spend instruction
+cycles; a loop that polls a world that cannot change until the next event parks until that event.
+"""
+from __future__ import annotations
+
+import heapq
+import itertools
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+import greenlet
+
+PS_PER_SECOND = 10**12
+
+
+def seconds(ps: int) -> float:
+    """Picoseconds of simulated time as seconds."""
+    return ps / PS_PER_SECOND
+
+
+def ps(seconds_: float) -> int:
+    """Seconds of simulated time as whole picoseconds."""
+    return round(seconds_ * PS_PER_SECOND)
+
+
+class Timer:
+    """A scheduled callback; `cancel()` keeps it from running."""
+
+    __slots__ = ("time", "callback", "cancelled")
+
+    def __init__(self, time: int, callback: Callable[[], Any]):
+        self.time = time
+        self.callback = callback
+        self.cancelled = False
+
+    def cancel(self) -> None:
+        self.cancelled = True
+
+
+class Simulator:
+    """The clock of one simulated world (a bus and the boards on it).
+
+    `quantum_ps` lets a running firmware run ahead of other firmware by up to that much simulated
+    time before it must hand over; it never runs past a hardware event. The bus sets it below the
+    shortest time in which one node's register write can become visible to another (one bit time).
+    """
+
+    def __init__(self, *, quantum_ps: int = 0):
+        self.now = 0
+        self.quantum_ps = quantum_ps
+        self._events: list[tuple[int, int, Timer]] = []
+        self._ready: list[tuple[int, int, Process]] = []
+        self._order = itertools.count()
+        self.processes: list[Process] = []
+
+    # -------------------------------------------------------------- events
+    def call_at(self, time: int, callback: Callable[[], Any]) -> Timer:
+        """Run `callback` at simulated time `time` (never in the past)."""
+        timer = Timer(max(time, self.now), callback)
+        heapq.heappush(self._events, (timer.time, next(self._order), timer))
+        return timer
+
+    def call_after(self, delay: int, callback: Callable[[], Any]) -> Timer:
+        return self.call_at(self.now + delay, callback)
+
+    def next_event_time(self) -> float:
+        return self._events[0][0] if self._events else float("inf")
+
+    # -------------------------------------------------------------- processes
+    def start(self, name: str, main: Callable[[], Any], *, context: Any = None) -> "Process":
+        """Start firmware `main` as a process at the current time; `context` is what it runs on."""
+        process = Process(self, name, main, context)
+        self.processes.append(process)
+        self._make_ready(process)
+        return process
+
+    def _make_ready(self, process: "Process") -> None:
+        heapq.heappush(self._ready, (process.local_time, next(self._order), process))
+
+    def _horizon(self) -> float:
+        """How far the process about to run may go before it must hand over."""
+        horizon = self.next_event_time()
+        if self._ready:
+            horizon = min(horizon, self._ready[0][0] + self.quantum_ps)
+        return horizon
+
+    # -------------------------------------------------------------- the loop
+    def run(self, until: int | None = None) -> None:
+        """Advance simulated time, to `until` (ps) or until nothing is left to happen."""
+        events, ready = self._events, self._ready
+        while events or ready:
+            if ready and (not events or (ready[0][0], ready[0][1]) < (events[0][0], events[0][1])):
+                time = ready[0][0]
+                if until is not None and time > until:
+                    break
+                _, _, process = heapq.heappop(ready)
+                self.now = time
+                process.horizon = self._horizon()
+                process.resume()
+            else:
+                time = events[0][0]
+                if until is not None and time > until:
+                    break
+                _, _, timer = heapq.heappop(events)
+                if not timer.cancelled:
+                    self.now = time
+                    timer.callback()
+        if until is not None and until > self.now:
+            self.now = until
+
+
+class Process(greenlet.greenlet):
+    """One firmware `main()` running on the simulated clock.
+
+    It owns a local time that runs ahead of the simulator's `now` as it spends instruction cycles.
+    It hands control back when that time passes the horizon (the next thing that must happen
+    first), or parks when it is polling a world that has not changed.
+    """
+
+    def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: Any):
+        super().__init__(self._body)
+        self.sim = sim
+        self.name = name
+        self.main = main
+        self.context = context
+        self.local_time = sim.now
+        self.horizon: float = 0
+        self.parked = False
+        self.finished = False
+        self.failure: BaseException | None = None
+        self.failure_text = ""
+
+    def _body(self) -> None:
+        try:
+            self.main()
+        except greenlet.GreenletExit:
+            raise
+        except Exception as failure:  # a firmware crash stops this board, not the simulation
+            self.failure = failure
+            self.failure_text = traceback.format_exc()
+        finally:
+            self.finished = True
+
+    def resume(self) -> None:
+        self.parent = greenlet.getcurrent()   # hand back to whoever runs the simulator
+        self.switch()
+
+    def spend(self, time_ps: int) -> None:
+        """Account for instructions executed; hand over if that passes the horizon."""
+        self.local_time += time_ps
+        if self.local_time > self.horizon:
+            self.sim._make_ready(self)
+            self.parent.switch()
+
+    def park(self) -> None:
+        """Wait, without spending cycles one by one, until `wake()` says something changed."""
+        self.parked = True
+        self.parent.switch()
+
+    def wake(self) -> None:
+        if self.parked:
+            self.parked = False
+            self.local_time = max(self.local_time, self.sim.now)
+            self.sim._make_ready(self)
+
+    def stop(self) -> None:
+        """End the firmware (as a reset would), wherever it is."""
+        if not self.dead:
+            self.throw(greenlet.GreenletExit)
+        self.finished = True

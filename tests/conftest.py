@@ -1,0 +1,35 @@
+"""Shared test harness: a simulated bus with boards, and firmware to run on them."""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pytest
+
+from appsim.bus import Bus
+from appsim.mcu import PIC18F8680
+from appsim.sim import PS_PER_SECOND, Simulator
+
+
+class World:
+    """A bus at 125 kbit/s (the classroom's) and the nodes on it."""
+
+    def __init__(self, bit_rate: int = 125_000):
+        self.sim = Simulator()
+        self.bus = Bus(self.sim, bit_rate)
+
+    def node(self, name: str, main: Callable[[], object] | None = None) -> PIC18F8680:
+        mcu = self.bus.attach(PIC18F8680(self.sim, name))
+        if main is not None:
+            mcu.run(main)
+        return mcu
+
+    def run(self, seconds: float = 0.1) -> None:
+        self.sim.run(until=self.sim.now + round(seconds * PS_PER_SECOND))
+        for process in self.sim.processes:
+            if process.failure is not None:
+                raise AssertionError(f"firmware {process.name} crashed:\n{process.failure_text}")
+
+
+@pytest.fixture
+def world() -> World:
+    return World()
