@@ -4,9 +4,10 @@ The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit str
 """
 from __future__ import annotations
 
-from appsim import an738
+from appsim import adc, an738
+from appsim.adc import *  # noqa: F403  (MPLAB C18 adc.h)
 from appsim.an738 import *  # noqa: F403  (the library's names, as the C header puts them in scope)
-from appsim.ecan.registers import BITFIELDS
+from appsim.ecan.registers import BITFIELDS as _CAN_BITFIELDS
 from appsim.mcu import CALL_CYCLES, current_mcu
 
 
@@ -50,12 +51,18 @@ def Nop() -> None:
     current_mcu().spend_cycles(1)
 
 
+def Delay1KTCYx(unit: int) -> None:
+    """Wait 1,000 x `unit` instruction cycles (C18 delays.h; 0.1 ms per unit at 40 MHz)."""
+    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * unit)
+
+
 def Delay10KTCYx(unit: int) -> None:
     """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz)."""
     current_mcu().spend_cycles(CALL_CYCLES + 10_000 * unit)
 
 
+BITFIELDS = _CAN_BITFIELDS | adc.BITFIELDS
 SFR = _SFRs()
 globals().update({f"{register}bits": _Bits(register, fields) for register, fields in BITFIELDS.items()})
 
-__all__ = list(an738.__all__) + ["SFR", "Nop", "Delay10KTCYx"] + [f"{r}bits" for r in BITFIELDS]
+__all__ = list(an738.__all__) + list(adc.__all__) + ["SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx"] + [f"{r}bits" for r in BITFIELDS]

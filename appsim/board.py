@@ -1,0 +1,44 @@
+"""The APP023 training board: a PIC18F8680 at 40 MHz with its ECAN on a CAN bus and the A/D on a potentiometer.
+
+The board's other parts (Timer1, GLCD, USART to the USB-CDC monitor) plug into the same SFR bus.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from appsim.adc import ADC, attach_adc
+from appsim.bus import Bus
+from appsim.loader import load_firmware
+from appsim.mcu import PIC18F8680
+from appsim.sim import Process
+
+
+class APP023:
+    """One board on a bus. `potentiometer` is the 10-bit value AN0 reads (0..1023)."""
+
+    def __init__(self, bus: Bus, name: str = "station0", *, potentiometer: int = 512):
+        self.bus = bus
+        self.mcu: PIC18F8680 = bus.attach(PIC18F8680(bus.sim, name))
+        self.adc: ADC = attach_adc(self.mcu)
+        self.adc.potentiometer = potentiometer
+        self.firmware: ModuleType | None = None
+
+    @property
+    def name(self) -> str:
+        return self.mcu.name
+
+    @property
+    def ecan(self):
+        return self.mcu.ecan
+
+    def run(self, firmware: str | Path | ModuleType | Callable[[], Any]) -> Process:
+        """Program the board with a firmware file, module or `main` function, and start it."""
+        if isinstance(firmware, (str, Path)):
+            firmware = load_firmware(firmware)
+        if isinstance(firmware, ModuleType):
+            self.firmware = firmware
+            firmware = firmware.main
+        return self.mcu.run(firmware)

@@ -1,0 +1,48 @@
+"""EX1 solution - Simple message in Loopback mode (CAN Workshop 202, exercise 1).
+
+Goal: practise sending and receiving without disturbing the CAN bus. In Loopback mode the ECAN
+does not drive CANTX: the frame goes from TXB0 straight to the message assembly buffer (MAB),
+and from there through the acceptance masks and filters into RXB0 or RXB1.
+
+Send a standard data frame with ID MESSAGE_ID1 and 5 bytes: 01 02 03 ADRESH ADRESL
+(the A/D result of channel 0, the potentiometer). Then wait for it with CANIsRxReady().
+
+Question: will RXB0 receive the data you sent? Normally, no! Why?
+"""
+from appsim.firmware import *
+
+MESSAGE_ID1 = 0x100     # this node's transmit identifier
+RX_Filter0 = MESSAGE_ID1  # RXF0 equals the own ID, so RXB0 takes the looped-back frame
+RX_Mask0 = 0x7FF          # every ID bit is compared
+
+TxData = [0x01, 0x02, 0x03, 0x00, 0x00]
+
+
+def CANInitialization():
+    # 125 kbit/s at Fosc = 40 MHz: SJW 4, BRP 10, PHSEG1 8, PHSEG2 4, PROPSEG 3 (16 TQ, sample point 75 %)
+    CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_VALID_STD_MSG)
+    CANSetOperationMode(CAN_OP_MODE_CONFIG)         # CANInitialize returns in NORMAL mode
+    CANSetMask(CAN_MASK_B1, RX_Mask0, CAN_CONFIG_STD_MSG)
+    CANSetMask(CAN_MASK_B2, RX_Mask0, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B1_F1, RX_Filter0, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B1_F2, RX_Filter0, CAN_CONFIG_STD_MSG)
+    CANSetOperationMode(CAN_OP_MODE_LOOP)
+
+
+def read_potentiometer():
+    ConvertADC()
+    while BusyADC():
+        pass
+    TxData[3] = SFR.ADRESH
+    TxData[4] = SFR.ADRESL
+
+
+def main():
+    OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_1ANA,
+            ADC_CH0 & ADC_INT_OFF & ADC_VREFPLUS_VDD & ADC_VREFMINUS_VSS)
+    CANInitialization()
+    read_potentiometer()
+    CANSendMessage(MESSAGE_ID1, TxData, 5, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_NO_RTR_FRAME)
+    while True:
+        if CANIsRxReady():                          # is your TX data in the RX buffer?
+            RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
