@@ -1,0 +1,3 @@
+from appsim.cli import main
+import sys
+sys.exit(main())
