@@ -5,8 +5,7 @@ Conversions take 11 TAD on the simulated clock; MPLAB C18's adc.h functions (Ope
 from __future__ import annotations
 
 import numbers
-
-import greenlet
+from typing import TypeGuard
 
 from appsim.mcu import CALL_CYCLES, PIC18F8680, current_mcu
 from appsim.sim import PS_PER_SECOND, Timer
@@ -36,7 +35,7 @@ BITFIELDS: dict[str, dict[str, tuple[int, int]]] = {
 }
 
 
-def _is_int(value: object) -> bool:
+def _is_int(value: object) -> TypeGuard[int]:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
@@ -84,11 +83,11 @@ class ADC:
 
     Simplifications, where the kit's firmware never looks:
     - Acquisition is manual: DS30491's ADCON2 is taken to hold only ADFM and ADCS2:0, as on the
-      PIC18F8720-family A/D this one shares (not verified against the data sheet here). Bits 5:3
+      PIC18F8720 family (an assumption, not checked against the data sheet). Bits 5:3
       (ACQT2:0 on later PIC18s) are kept as plain R/W bits and add no acquisition time. The minimum
       TAD is not checked: a too-fast ADCS still converts exactly.
     - Inputs are given as codes (VREF+ = VDD, VREF- = VSS), so VCFG1:0 and PCFG3:0 are plain R/W bits:
-      a channel converts whatever PCFG says.
+      a channel converts regardless of PCFG.
     - No PIR1.ADIF / PIE1.ADIE (PIR1 is shared with Timer1 and no interrupts are simulated): firmware
       polls GO/DONE, as the workshop's does with BusyADC().
     """
@@ -137,13 +136,7 @@ class ADC:
     def _start(self) -> None:
         """Sample the selected input now and schedule the end of the conversion."""
         sample = self.inputs[(self._registers[_ADCON0] >> 2) & 0x0F]
-        process = self.mcu.process
-        in_firmware = process is not None and greenlet.getcurrent() is process
-        start = process.local_time if in_firmware else self.mcu.sim.now   # firmware runs ahead of sim.now
-        end = start + self.conversion_ps()
-        self._conversion = self.mcu.sim.call_at(end, lambda: self._finish(sample))
-        if in_firmware:     # the firmware must not run past the end without seeing it
-            process.horizon = min(process.horizon, end)
+        self._conversion = self.mcu.sim.call_after(self.conversion_ps(), lambda: self._finish(sample))
 
     def _finish(self, code: int) -> None:
         self._conversion = None

@@ -10,7 +10,6 @@ from fractions import Fraction
 
 from appsim.bits import INTERMISSION_BITS, frame_bits
 from appsim.bittiming import BitTiming, BitTimingError
-from appsim.ecan import registers as R
 from appsim.ecan.controller import ECAN, Mode
 from appsim.frame import CanFrame
 from appsim.mcu import PIC18F8680
@@ -125,14 +124,18 @@ class Bus:
     def mode_requested(self, ecan: ECAN) -> None:
         port = self._by_ecan[id(ecan)]
         if port.mode_timer is None:
-            port.mode_timer = self.sim.call_at(
-                max(self.sim.now + 2 * port.mcu.tcy_ps, self.busy_until), lambda: self._change_mode(port))
+            self._change_mode_after_idle(port, max(self.sim.time(), self.busy_until))
+
+    def _change_mode_after_idle(self, port: _Port, idle_from: int) -> None:
+        """The module counts 11 recessive bits (at its own bit time) before OPMODE follows REQOP."""
+        port.mode_timer = self.sim.call_at(idle_from + BUS_IDLE_BITS * self._node_bit_ps(port),
+                                           lambda: self._change_mode(port))
 
     def _change_mode(self, port: _Port) -> None:
         """OPMODE follows REQOP once the bus is idle (a frame in progress is finished first)."""
         port.mode_timer = None
         if self.busy_until > self.sim.now:
-            port.mode_timer = self.sim.call_at(self.busy_until, lambda: self._change_mode(port))
+            self._change_mode_after_idle(port, self.busy_until)
             return
         port.ecan.enter_requested_mode()
         if port.ecan.opmode in (Mode.NORMAL, Mode.LISTEN_ONLY):
@@ -145,18 +148,18 @@ class Bus:
         if ecan.opmode == Mode.LOOPBACK:
             self._loopback(port)
         elif ecan.opmode == Mode.NORMAL:
-            self._schedule_arbitration(max(self.sim.now, self.busy_until, port.suspend_until))
+            self._schedule_arbitration(max(self.sim.time(), self.busy_until, port.suspend_until))
 
     # ------------------------------------------------------------------ loopback: off the bus
     def _loopback(self, port: _Port) -> None:
         """TX buffer -> MAB -> filters -> RX buffer, at the node's own bit rate, never on the bus."""
         ecan = port.ecan
         buffer = ecan.next_transmission()
-        if buffer is None or ecan.on_wire is not None or port.loop_busy_until > self.sim.now:
+        start = self.sim.time()
+        if buffer is None or ecan.on_wire is not None or port.loop_busy_until > start:
             return
         frame = ecan.frame_in(buffer)
         ecan.transmission_started(buffer)
-        start = self.sim.now
         end = start + frame_bits(frame) * self._node_bit_ps(port)
         port.loop_busy_until = end + INTERMISSION_BITS * self._node_bit_ps(port)
 
@@ -200,8 +203,10 @@ class Bus:
             if waiting:
                 self._schedule_arbitration(min(p.suspend_until for p in waiting))
             return
-        self._account_idle(now)
-        self._wake_disabled_nodes()
+        self._stop_idle_count()
+        for port in self.ports:
+            if port.ecan.bus_activity():
+                port.mcu.changed()
         entries = []
         for port in contenders:
             buffer = port.ecan.next_transmission()
@@ -263,7 +268,7 @@ class Bus:
             for port in good:
                 received.append((port.name, str(port.ecan.frame_received(frame))))
                 port.mcu.changed()
-            self._flag_wrong_rate(wrong_rate, echo=False)
+            self._flag_wrong_rate(wrong_rate)
             for _, port, twin, _ in [(None, sender, buffer, None)] + same_id:
                 port.ecan.transmission_succeeded(twin)
                 self._after_transmit(port)
@@ -290,7 +295,7 @@ class Bus:
                     port.ecan.receive_error(rec_increment=0)
                     received.append((port.name, "form error: active error flag in the ACK delimiter"))
                 port.mcu.changed()
-            self._flag_wrong_rate(wrong_rate, echo=False)
+            self._flag_wrong_rate(wrong_rate)
             sender.ecan.transmission_failed(buffer, tec_increment=0 if passive else 8)
             self._after_transmit(sender)
             self.trace.append(BusEvent(start, end, sender.name, frame, (), "ACK error: no node acknowledged",
@@ -326,11 +331,10 @@ class Bus:
 
         self.sim.call_at(end, end_of_error)
 
-    def _flag_wrong_rate(self, ports: list[_Port], *, echo: bool) -> None:
-        """Nodes at the wrong bit rate see garbage: an error each frame (listen-only: IRXIF only)."""
+    def _flag_wrong_rate(self, ports: list[_Port]) -> None:
+        """Error-passive nodes at the wrong bit rate see garbage: REC += 1 (listen-only: IRXIF only)."""
         for port in ports:
-            normal = port.ecan.opmode == Mode.NORMAL
-            port.ecan.receive_error(rec_increment=(1 + (8 if echo else 0)) if normal else 0)
+            port.ecan.receive_error(rec_increment=1 if port.ecan.opmode == Mode.NORMAL else 0)
             port.mcu.changed()
 
     def _after_transmit(self, port: _Port) -> None:
@@ -366,7 +370,7 @@ class Bus:
         if any(p.ecan.bus_off for p in self.ports):
             self._idle_timer = self.sim.call_after(BUS_IDLE_BITS * self.bit_ps, self._idle_sequence)
 
-    def _account_idle(self, now: int) -> None:
+    def _stop_idle_count(self) -> None:
         """A SOF ends the idle period: stop counting recessive sequences for bus-off nodes."""
         if self._idle_timer is not None:
             self._idle_timer.cancel()
@@ -377,14 +381,6 @@ class Bus:
         if not port.ecan.bus_off:
             port.mcu.changed()
             self.transmit_requested(port.ecan)
-
-    def _wake_disabled_nodes(self) -> None:
-        """Bus activity sets WAKIF in Disable mode (when WAKIE allows, as DS39500 says)."""
-        for port in self.ports:
-            ecan = port.ecan
-            if ecan.opmode == Mode.DISABLE and ecan.get("PIE3") & R.WAKIF:
-                ecan._setbits("PIR3", R.WAKIF)
-                port.mcu.changed()
 
     # ------------------------------------------------------------------ reading the trace
     def frames(self) -> list[BusEvent]:

@@ -56,16 +56,29 @@ class Simulator:
         self._ready: list[tuple[int, int, Process]] = []
         self._order = itertools.count()
         self.processes: list[Process] = []
+        self.running: Process | None = None
 
     # -------------------------------------------------------------- events
+    def time(self) -> int:
+        """Simulated time as the caller sees it: a running firmware's own clock is ahead of `now`."""
+        running = self.running
+        return running.local_time if running is not None and greenlet.getcurrent() is running else self.now
+
     def call_at(self, time: int, callback: Callable[[], Any]) -> Timer:
-        """Run `callback` at simulated time `time` (never in the past)."""
+        """Run `callback` at simulated time `time` (never in the past).
+
+        When firmware causes the event (a register write), it may not run past it without seeing it.
+        """
         timer = Timer(max(time, self.now), callback)
         heapq.heappush(self._events, (timer.time, next(self._order), timer))
+        running = self.running
+        if running is not None and timer.time < running.horizon:
+            running.horizon = timer.time
         return timer
 
     def call_after(self, delay: int, callback: Callable[[], Any]) -> Timer:
-        return self.call_at(self.now + delay, callback)
+        """Run `callback` `delay` picoseconds after the caller's present (see `time`)."""
+        return self.call_at(self.time() + delay, callback)
 
     def next_event_time(self) -> float:
         return self._events[0][0] if self._events else float("inf")
@@ -100,7 +113,9 @@ class Simulator:
                 _, _, process = heapq.heappop(ready)
                 self.now = time
                 process.horizon = self._horizon()
+                self.running = process
                 process.resume()
+                self.running = None
             else:
                 time = events[0][0]
                 if until is not None and time > until:
