@@ -6,10 +6,35 @@ from collections.abc import Callable
 import pytest
 
 from appsim.adc import (
-    ADC, ADC_CH0, ADC_CH3, ADC_CH5, ADC_CH15, ADC_FOSC_2, ADC_FOSC_4, ADC_FOSC_8, ADC_FOSC_16, ADC_FOSC_32,
-    ADC_FOSC_64, ADC_FOSC_RC, ADC_16ANA, ADC_1ANA, ADC_INT_OFF, ADC_LEFT_JUST, ADC_RIGHT_JUST,
-    ADC_VREFMINUS_EXT, ADC_VREFMINUS_VSS, ADC_VREFPLUS_EXT, ADC_VREFPLUS_VDD, BusyADC, CloseADC, ConvertADC,
-    OpenADC, ReadADC, SetChanADC, attach_adc)
+    ADC,
+    ADC_1ANA,
+    ADC_16ANA,
+    ADC_CH0,
+    ADC_CH3,
+    ADC_CH5,
+    ADC_CH15,
+    ADC_FOSC_2,
+    ADC_FOSC_4,
+    ADC_FOSC_8,
+    ADC_FOSC_16,
+    ADC_FOSC_32,
+    ADC_FOSC_64,
+    ADC_FOSC_RC,
+    ADC_INT_OFF,
+    ADC_LEFT_JUST,
+    ADC_RIGHT_JUST,
+    ADC_VREFMINUS_EXT,
+    ADC_VREFMINUS_VSS,
+    ADC_VREFPLUS_EXT,
+    ADC_VREFPLUS_VDD,
+    BusyADC,
+    CloseADC,
+    ConvertADC,
+    OpenADC,
+    ReadADC,
+    SetChanADC,
+    attach_adc,
+)
 from appsim.firmware import Delay10KTCYx
 from appsim.mcu import PIC18F8680
 from appsim.sim import Simulator
@@ -64,7 +89,7 @@ def test_attach_twice_is_refused() -> None:
 
 
 def test_register_level_conversion_takes_11_tad() -> None:
-    sim, mcu, _ = make_board(666)
+    _, mcu, _ = make_board(666)
     seen = {}
 
     def main() -> None:
@@ -110,7 +135,7 @@ def test_result_appears_exactly_at_the_end_of_the_conversion() -> None:
 @pytest.mark.parametrize("code", [0, 1, 3, 255, 256, 666, 1022, 1023])
 @pytest.mark.parametrize("adfm", [1, 0])
 def test_justification(code: int, adfm: int) -> None:
-    _, mcu, adc = make_board(code)
+    _, mcu, _ = make_board(code)
     mcu.write_name("ADCON2", (adfm << 7) | 0x06)
     mcu.write_name("ADCON0", 0x01)
     mcu.write_name("ADCON0", 0x03)

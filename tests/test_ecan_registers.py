@@ -230,3 +230,41 @@ def test_ecancon_other_than_mode_0_is_refused_with_an_explanation():
     with pytest.raises(UnsupportedMode, match="legacy Mode 0"):
         ecan.write(addr("ECANCON"), 0x40)
     assert ecan.read(addr("ECANCON")) == 0
+
+
+def test_rxm_01_rejects_extended_and_rxm_10_rejects_standard_frames():
+    ecan = ECAN()                                         # masks 0: every filter bit is don't-care
+    for n in range(6):
+        ecan.write(addr(f"RXF{n}SIDL"), R.EXIDE if n % 2 else 0)
+    ecan.write(addr("RXB0CON"), 0b01 << 5)
+    ecan.write(addr("RXB1CON"), 0b01 << 5)
+    assert ecan.frame_received(CanFrame(0x123, extended=True)).buffer is None
+    assert ecan.frame_received(CanFrame(0x123)).buffer == "RXB0"
+    ecan.write(addr("RXB0CON"), 0b10 << 5)
+    ecan.write(addr("RXB1CON"), 0b10 << 5)
+    assert ecan.frame_received(CanFrame(0x124)).buffer is None
+    reception = ecan.frame_received(CanFrame(0x125, extended=True))
+    assert (reception.buffer, reception.filter) == ("RXB0", 1), (
+        "writing RXB0CON with bit 7 = 0 cleared RXFUL (R/C), so RXB0 was free; RXF1 is its extended filter")
+
+
+def test_rxm_11_accepts_what_the_filters_reject():
+    ecan = ECAN()
+    for offset in range(4):
+        ecan.write(addr("RXM0SIDH") + offset, 0xFF)
+    ecan.write(addr("RXB0CON"), 0b11 << 5)
+    assert str(ecan.frame_received(CanFrame(0x7AB, extended=False))) == "RXB0 via RXF0"
+
+
+def test_mode_change_aborts_pending_transmissions_as_the_workshop_warns():
+    for aborts in (True, False):
+        ecan = ECAN(mode_change_aborts_tx=aborts)
+        ecan.write(addr("CANCON"), 0)
+        ecan.enter_requested_mode()
+        ecan.write(addr("TXB0CON"), R.TXREQ)
+        ecan.write(addr("CANCON"), 0x60)                  # to Listen-only
+        ecan.enter_requested_mode()
+        assert bool(ecan.get("TXB0CON") & R.TXABT) == aborts
+    ecan.write(addr("CANCON"), 0x80)                      # Configuration always aborts
+    ecan.enter_requested_mode()
+    assert ecan.get("TXB0CON") & (R.TXREQ | R.TXABT) == R.TXABT

@@ -377,6 +377,13 @@ class ECAN:
         self._setbits("PIR3", R.RXBIF[buffer])
         return Reception(buffer, filter_number)
 
+    def bus_activity(self) -> bool:
+        """A SOF on the bus: in Disable mode it sets WAKIF (when WAKIE is set, as DS39500 says)."""
+        if self.opmode == Mode.DISABLE and self._sfr[0xA3] & R.WAKIF:
+            self._setbits("PIR3", R.WAKIF)
+            return True
+        return False
+
     def receive_error(self, *, rec_increment: int = 1) -> None:
         """A receiver detected a CRC, stuff or form error: IRXIF sets, REC += 1 (or 8)."""
         self._setbits("PIR3", R.IRXIF)
