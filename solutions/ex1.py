@@ -8,6 +8,12 @@ Send a standard data frame with ID MESSAGE_ID1 and 5 bytes: 01 02 03 ADRESH ADRE
 (the A/D result of channel 0, the potentiometer). Then wait for it with CANIsRxReady().
 
 Question: will RXB0 receive the data you sent? Normally, no! Why?
+
+Answer: Loopback keeps the acceptance logic. A frame reaches RXB0 only if it passes RXF0 or RXF1
+under mask RXM0 (or RXB1 through RXF2..RXF5 under RXM1). With mask 0x7FF every identifier bit is
+compared, and the starter's RX_Filter0 = 0x088 is not MESSAGE_ID1 = 0x100, so the frame is dropped.
+Three fixes work: set the filter equal to MESSAGE_ID1 (this file), relax the mask, or set
+RXBnCON.RXM = 11 (CAN_CONFIG_ALL_MSG), which overrides masks and filters.
 """
 from appsim.firmware import *
 
