@@ -105,9 +105,8 @@ class Bus:
         raise KeyError(f"no node named {name!r} on this bus")
 
     def _rate_ok(self, port: _Port) -> bool:
-        ecan = port.ecan
         try:
-            timing = BitTiming.from_registers(ecan.get("BRGCON1"), ecan.get("BRGCON2"), ecan.get("BRGCON3"))
+            timing = port.ecan.bit_timing()
         except BitTimingError:
             return False
         if timing.problems():
@@ -116,9 +115,7 @@ class Bus:
         return error <= oscillator_tolerance(timing)
 
     def _node_bit_ps(self, port: _Port) -> int:
-        ecan = port.ecan
-        timing = BitTiming.from_registers(ecan.get("BRGCON1"), ecan.get("BRGCON2"), ecan.get("BRGCON3"))
-        return timing.bit_time_ps(port.mcu.fosc)
+        return port.ecan.bit_timing().bit_time_ps(port.mcu.fosc)
 
     # ------------------------------------------------------------------ what the ECAN asks for
     def mode_requested(self, ecan: ECAN) -> None:

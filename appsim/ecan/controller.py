@@ -8,6 +8,7 @@ import enum
 from dataclasses import dataclass
 from typing import Protocol
 
+from appsim.bittiming import BitTiming
 from appsim.ecan import registers as R
 from appsim.ecan.acceptance import Filter, buffer_hit, raw29, unpack_id
 from appsim.frame import CanFrame
@@ -106,6 +107,10 @@ class ECAN:
     @property
     def error_state(self) -> str:
         return "bus-off" if self.bus_off else "error-passive" if self.error_passive else "error-active"
+
+    def bit_timing(self) -> BitTiming:
+        """The bit timing BRGCON1..3 hold (whatever the mode; the registers only read 0 to firmware)."""
+        return BitTiming.from_registers(self.get("BRGCON1"), self.get("BRGCON2"), self.get("BRGCON3"))
 
     def get(self, name: str) -> int:
         """A register's stored value by datasheet name, without side effects or protection."""
