@@ -5,8 +5,10 @@ who ACKs and who flags an error is decided at SOF from each node's mode, error s
 """
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 from fractions import Fraction
+from typing import Protocol
 
 from appsim.bits import INTERMISSION_BITS, frame_bits
 from appsim.bittiming import BitTiming, BitTimingError
@@ -46,9 +48,35 @@ class BusEvent:
         return f"{time}  {self.sender:>10}  {self.frame}  ACK by {acks}"
 
 
+class _Port(Protocol):
+    """A node's attachment to the bus: what the protocol engine asks of a transmitter and a receiver."""
+
+    name: str
+    rate_ok: bool
+    suspend_until: int
+
+    @property
+    def mode(self) -> Mode: ...
+    @property
+    def bus_off(self) -> bool: ...
+    @property
+    def error_passive(self) -> bool: ...
+    def pending(self) -> tuple[str, CanFrame] | None:
+        """The buffer and frame this node would send next, if any."""
+    def started(self, buffer: str) -> None: ...
+    def lost(self, buffer: str) -> None: ...
+    def succeeded(self, buffer: str) -> None: ...
+    def failed(self, buffer: str, tec_increment: int) -> None: ...
+    def receive(self, frame: CanFrame) -> str:
+        """A frame went through: take it; returns what the node did with it, for the trace."""
+    def receive_error(self, rec_increment: int) -> None: ...
+    def activity(self) -> None: ...
+    def notify(self) -> None: ...
+
+
 @dataclass(eq=False)
-class _Port:
-    """A node's attachment to the bus."""
+class _BoardPort(_Port):
+    """A PIC18F8680's ECAN module on the bus."""
 
     mcu: PIC18F8680
     rate_ok: bool = True
@@ -63,6 +91,95 @@ class _Port:
     @property
     def name(self) -> str:
         return self.mcu.name
+
+    @property
+    def mode(self) -> Mode:
+        return self.ecan.opmode
+
+    @property
+    def bus_off(self) -> bool:
+        return self.ecan.bus_off
+
+    @property
+    def error_passive(self) -> bool:
+        return self.ecan.error_passive
+
+    def pending(self) -> tuple[str, CanFrame] | None:
+        buffer = self.ecan.next_transmission()
+        return None if buffer is None else (buffer, self.ecan.frame_in(buffer))
+
+    def started(self, buffer: str) -> None:
+        self.ecan.transmission_started(buffer)
+
+    def lost(self, buffer: str) -> None:
+        self.ecan.arbitration_lost(buffer)
+        self.mcu.changed()
+
+    def succeeded(self, buffer: str) -> None:
+        self.ecan.transmission_succeeded(buffer)
+
+    def failed(self, buffer: str, tec_increment: int) -> None:
+        self.ecan.transmission_failed(buffer, tec_increment=tec_increment)
+
+    def receive(self, frame: CanFrame) -> str:
+        reception = str(self.ecan.frame_received(frame))
+        self.mcu.changed()
+        return reception
+
+    def receive_error(self, rec_increment: int) -> None:
+        self.ecan.receive_error(rec_increment=rec_increment)
+        self.mcu.changed()
+
+    def activity(self) -> None:
+        if self.ecan.bus_activity():
+            self.mcu.changed()
+
+    def notify(self) -> None:
+        self.mcu.changed()
+
+
+class Outside(Protocol):
+    """The far side of a link: the rest of a bus that is not simulated (see `appsim.link`)."""
+
+    name: str
+
+    def frame_from_simulation(self, frame: CanFrame) -> None:
+        """A frame that went through on the simulated bus, to send outside."""
+
+
+@dataclass(eq=False)
+class _LinkPort(_Port):
+    """The outside world seen from the simulated bus: one error-active node that ACKs every frame
+    and sends the frames that arrive from outside, retrying them as any node would."""
+
+    outside: Outside
+    queue: deque[CanFrame] = field(default_factory=deque)
+    rate_ok: bool = True
+    suspend_until: int = 0
+    mode: Mode = Mode.NORMAL
+    bus_off: bool = False
+    error_passive: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.outside.name
+
+    def pending(self) -> tuple[str, CanFrame] | None:
+        return ("outside", self.queue[0]) if self.queue else None
+
+    def started(self, buffer: str) -> None: ...
+    def lost(self, buffer: str) -> None: ...
+    def failed(self, buffer: str, tec_increment: int) -> None: ...
+    def receive_error(self, rec_increment: int) -> None: ...
+    def activity(self) -> None: ...
+    def notify(self) -> None: ...
+
+    def succeeded(self, buffer: str) -> None:
+        self.queue.popleft()
+
+    def receive(self, frame: CanFrame) -> str:
+        self.outside.frame_from_simulation(frame)
+        return "sent outside"
 
 
 def oscillator_tolerance(timing: BitTiming) -> Fraction:
@@ -83,7 +200,7 @@ class Bus:
         self.bit_ps = PS_PER_SECOND // bit_rate
         sim.quantum_ps = max(sim.quantum_ps, self.bit_ps)
         self.ports: list[_Port] = []
-        self._by_ecan: dict[int, _Port] = {}
+        self._by_ecan: dict[int, _BoardPort] = {}
         self.trace: list[BusEvent] = []
         self.loopback_trace: list[BusEvent] = []
         self.busy_until = 0          # end of the intermission after the last frame or error frame
@@ -92,7 +209,7 @@ class Bus:
 
     # ------------------------------------------------------------------ nodes
     def attach(self, mcu: PIC18F8680) -> PIC18F8680:
-        port = _Port(mcu)
+        port = _BoardPort(mcu)
         self.ports.append(port)
         self._by_ecan[id(mcu.ecan)] = port
         mcu.ecan.listener = self
@@ -100,11 +217,21 @@ class Bus:
 
     def node(self, name: str) -> PIC18F8680:
         for port in self.ports:
-            if port.name == name:
+            if port.name == name and isinstance(port, _BoardPort):
                 return port.mcu
         raise KeyError(f"no node named {name!r} on this bus")
 
-    def _rate_ok(self, port: _Port) -> bool:
+    def attach_outside(self, outside: Outside) -> None:
+        """Join the rest of a real bus (see `appsim.link`): it ACKs every frame and sends its own."""
+        self.ports.append(_LinkPort(outside))
+
+    def from_outside(self, outside: Outside, frame: CanFrame) -> None:
+        """A frame arrived from outside at the simulated present: it contends for the bus."""
+        port = next(p for p in self.ports if isinstance(p, _LinkPort) and p.outside is outside)
+        port.queue.append(frame)
+        self._schedule_arbitration(max(self.sim.time(), self.busy_until))
+
+    def _rate_ok(self, port: _BoardPort) -> bool:
         try:
             timing = port.ecan.bit_timing()
         except BitTimingError:
@@ -114,7 +241,7 @@ class Bus:
         error = abs(timing.bit_rate(port.mcu.fosc) - self.bit_rate) / self.bit_rate
         return error <= oscillator_tolerance(timing)
 
-    def _node_bit_ps(self, port: _Port) -> int:
+    def _node_bit_ps(self, port: _BoardPort) -> int:
         return port.ecan.bit_timing().bit_time_ps(port.mcu.fosc)
 
     # ------------------------------------------------------------------ what the ECAN asks for
@@ -123,12 +250,12 @@ class Bus:
         if port.mode_timer is None:
             self._change_mode_after_idle(port, max(self.sim.time(), self.busy_until))
 
-    def _change_mode_after_idle(self, port: _Port, idle_from: int) -> None:
+    def _change_mode_after_idle(self, port: _BoardPort, idle_from: int) -> None:
         """The module counts 11 recessive bits (at its own bit time) before OPMODE follows REQOP."""
         port.mode_timer = self.sim.call_at(idle_from + BUS_IDLE_BITS * self._node_bit_ps(port),
                                            lambda: self._change_mode(port))
 
-    def _change_mode(self, port: _Port) -> None:
+    def _change_mode(self, port: _BoardPort) -> None:
         """OPMODE follows REQOP once the bus is idle (a frame in progress is finished first)."""
         port.mode_timer = None
         if self.busy_until > self.sim.now:
@@ -148,7 +275,7 @@ class Bus:
             self._schedule_arbitration(max(self.sim.time(), self.busy_until, port.suspend_until))
 
     # ------------------------------------------------------------------ loopback: off the bus
-    def _loopback(self, port: _Port) -> None:
+    def _loopback(self, port: _BoardPort) -> None:
         """TX buffer -> MAB -> filters -> RX buffer, at the node's own bit rate, never on the bus."""
         ecan = port.ecan
         buffer = ecan.next_transmission()
@@ -179,7 +306,7 @@ class Bus:
         self._arbitration = self.sim.call_at(time, self._start_of_frame)
 
     def _on_bus(self, port: _Port, *modes: Mode) -> bool:
-        return port.ecan.opmode in modes and not port.ecan.bus_off
+        return port.mode in modes and not port.bus_off
 
     def _start_of_frame(self) -> None:
         """SOF: the pending frames arbitrate; the outcome of the winner's frame is fixed here."""
@@ -192,8 +319,7 @@ class Bus:
         for port in self.ports:
             if not self._on_bus(port, Mode.NORMAL):
                 continue
-            buffer = port.ecan.next_transmission()
-            if buffer is None:
+            if port.pending() is None:
                 continue
             (contenders if port.suspend_until <= now else waiting).append(port)
         if not contenders:
@@ -202,13 +328,11 @@ class Bus:
             return
         self._stop_idle_count()
         for port in self.ports:
-            if port.ecan.bus_activity():
-                port.mcu.changed()
+            port.activity()
         entries = []
         for port in contenders:
-            buffer = port.ecan.next_transmission()
-            frame = port.ecan.frame_in(buffer)
-            port.ecan.transmission_started(buffer)
+            buffer, frame = port.pending()
+            port.started(buffer)
             entries.append((_arbitration_key(frame), port, buffer, frame))
         entries.sort(key=lambda e: e[0])
         key, sender, buffer, frame = entries[0]
@@ -216,13 +340,9 @@ class Bus:
             if loser_key == key:
                 continue   # same identifier: both keep sending; settled below as a collision
             lost_at = now + _first_difference(key, loser_key) * self.bit_ps
-            self.sim.call_at(lost_at, lambda p=port, b=lost_buffer: self._lose(p, b))
+            self.sim.call_at(lost_at, lambda p=port, b=lost_buffer: p.lost(b))
         same_id = [e for e in entries[1:] if e[0] == key]
         self._transmit(now, sender, buffer, frame, same_id)
-
-    def _lose(self, port: _Port, buffer: str) -> None:
-        port.ecan.arbitration_lost(buffer)
-        port.mcu.changed()
 
     def _transmit(self, start: int, sender: _Port, buffer: str, frame: CanFrame,
                   same_id: list[tuple[int, _Port, str, CanFrame]]) -> None:
@@ -231,15 +351,14 @@ class Bus:
         listeners = [p for p in others if self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
         if not sender.rate_ok:
             # Nobody at the bus bit rate can read this frame: every active node flags it.
-            flaggers = [p for p in listeners if p.rate_ok and p.ecan.opmode == Mode.NORMAL
-                        and not p.ecan.error_passive]
+            flaggers = [p for p in listeners if p.rate_ok and p.mode == Mode.NORMAL and not p.error_passive]
             if flaggers:
                 self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
                                   "sent at the wrong bit rate: the other nodes flagged it",
                                   flaggers, listeners, tec_increment=8)
                 return
         wrong_rate = [p for p in listeners if not p.rate_ok]
-        destroyers = [p for p in wrong_rate if p.ecan.opmode == Mode.NORMAL and not p.ecan.error_passive]
+        destroyers = [p for p in wrong_rate if p.mode == Mode.NORMAL and not p.error_passive]
         if destroyers and sender.rate_ok:
             self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
                               f"destroyed by error flags of {', '.join(p.name for p in destroyers)} "
@@ -253,7 +372,7 @@ class Bus:
                               colliders, listeners, tec_increment=8, also_failed=same_id)
             return
         good = [p for p in listeners if p.rate_ok]
-        ackers = tuple(p.name for p in good if p.ecan.opmode == Mode.NORMAL)
+        ackers = tuple(p.name for p in good if p.mode == Mode.NORMAL)
         if not ackers:
             self._ack_error(start, bits, sender, buffer, frame, good, wrong_rate)
             return
@@ -261,13 +380,10 @@ class Bus:
         self.busy_until = end + INTERMISSION_BITS * self.bit_ps
 
         def end_of_frame() -> None:
-            received = []
-            for port in good:
-                received.append((port.name, str(port.ecan.frame_received(frame))))
-                port.mcu.changed()
+            received = [(port.name, port.receive(frame)) for port in good]
             self._flag_wrong_rate(wrong_rate)
             for _, port, twin, _ in [(None, sender, buffer, None)] + same_id:
-                port.ecan.transmission_succeeded(twin)
+                port.succeeded(twin)
                 self._after_transmit(port)
             self.trace.append(BusEvent(start, end, sender.name, frame, ackers, "", tuple(received)))
             self._bus_idle()
@@ -278,7 +394,7 @@ class Bus:
                    good: list[_Port], wrong_rate: list[_Port]) -> None:
         """Nobody ACKed. An error-active sender's flag makes the frame invalid for everyone; an
         error-passive sender's recessive flag leaves it valid for receivers, and its TEC unchanged."""
-        passive = sender.ecan.error_passive
+        passive = sender.error_passive
         flag_start = start + (bits - 8) * self.bit_ps          # the ACK delimiter
         end = flag_start + (ERROR_FLAG_BITS + ERROR_DELIMITER_BITS) * self.bit_ps
         self.busy_until = end + INTERMISSION_BITS * self.bit_ps
@@ -287,13 +403,12 @@ class Bus:
             received = []
             for port in good:      # listen-only nodes: they never ACK
                 if passive:
-                    received.append((port.name, str(port.ecan.frame_received(frame))))
+                    received.append((port.name, port.receive(frame)))
                 else:
-                    port.ecan.receive_error(rec_increment=0)
+                    port.receive_error(rec_increment=0)
                     received.append((port.name, "form error: active error flag in the ACK delimiter"))
-                port.mcu.changed()
             self._flag_wrong_rate(wrong_rate)
-            sender.ecan.transmission_failed(buffer, tec_increment=0 if passive else 8)
+            sender.failed(buffer, tec_increment=0 if passive else 8)
             self._after_transmit(sender)
             self.trace.append(BusEvent(start, end, sender.name, frame, (), "ACK error: no node acknowledged",
                                        tuple(received)))
@@ -312,15 +427,14 @@ class Bus:
         def end_of_error() -> None:
             received = []
             for port in listeners:
-                if port.ecan.opmode == Mode.NORMAL:
+                if port.mode == Mode.NORMAL:
                     echo = 8 if port in flaggers and not port.rate_ok else 0
-                    port.ecan.receive_error(rec_increment=1 + echo)
+                    port.receive_error(rec_increment=1 + echo)
                 else:
-                    port.ecan.receive_error(rec_increment=0)
+                    port.receive_error(rec_increment=0)
                 received.append((port.name, "error frame"))
-                port.mcu.changed()
             for port, failed_buffer in [(sender, buffer)] + [(e[1], e[2]) for e in also_failed or []]:
-                port.ecan.transmission_failed(failed_buffer, tec_increment=tec_increment)
+                port.failed(failed_buffer, tec_increment=tec_increment)
                 self._after_transmit(port)
             self.trace.append(BusEvent(start, end, sender.name, frame, (), f"{sender_error}: {why}",
                                        tuple(received)))
@@ -331,22 +445,21 @@ class Bus:
     def _flag_wrong_rate(self, ports: list[_Port]) -> None:
         """Error-passive nodes at the wrong bit rate see garbage: REC += 1 (listen-only: IRXIF only)."""
         for port in ports:
-            port.ecan.receive_error(rec_increment=1 if port.ecan.opmode == Mode.NORMAL else 0)
-            port.mcu.changed()
+            port.receive_error(rec_increment=1 if port.mode == Mode.NORMAL else 0)
 
     def _after_transmit(self, port: _Port) -> None:
         """An error-passive transmitter waits 8 more bits (suspend transmission) before its next SOF."""
-        if port.ecan.error_passive:
+        if port.error_passive:
             port.suspend_until = self.busy_until + SUSPEND_TRANSMISSION_BITS * self.bit_ps
-        port.mcu.changed()
+        port.notify()
 
     # ------------------------------------------------------------------ idle bus, bus-off recovery
     def _bus_idle(self) -> None:
         """After each frame or error frame: one sequence of 11 recessive bits; next SOF if anyone waits."""
         for port in self.ports:
-            if port.ecan.bus_off:
+            if port.bus_off:
                 self._recover(port, 1)
-        pending = [p for p in self.ports if self._on_bus(p, Mode.NORMAL) and p.ecan.next_transmission()]
+        pending = [p for p in self.ports if self._on_bus(p, Mode.NORMAL) and p.pending() is not None]
         if pending:
             self._schedule_arbitration(max(self.busy_until, min(p.suspend_until for p in pending)))
         self._start_idle_count()
@@ -355,16 +468,16 @@ class Bus:
         if self._idle_timer is not None:
             self._idle_timer.cancel()
             self._idle_timer = None
-        if any(p.ecan.bus_off for p in self.ports):
+        if any(p.bus_off for p in self.ports):
             self._idle_timer = self.sim.call_at(self.busy_until + BUS_IDLE_BITS * self.bit_ps,
                                                 self._idle_sequence)
 
     def _idle_sequence(self) -> None:
         self._idle_timer = None
         for port in self.ports:
-            if port.ecan.bus_off:
+            if port.bus_off:
                 self._recover(port, 1)
-        if any(p.ecan.bus_off for p in self.ports):
+        if any(p.bus_off for p in self.ports):
             self._idle_timer = self.sim.call_after(BUS_IDLE_BITS * self.bit_ps, self._idle_sequence)
 
     def _stop_idle_count(self) -> None:
@@ -373,7 +486,7 @@ class Bus:
             self._idle_timer.cancel()
             self._idle_timer = None
 
-    def _recover(self, port: _Port, sequences: int) -> None:
+    def _recover(self, port: _BoardPort, sequences: int) -> None:
         port.ecan.bus_off_recovery(sequences)
         if not port.ecan.bus_off:
             port.mcu.changed()
