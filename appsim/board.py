@@ -11,9 +11,12 @@ from typing import Any
 
 from appsim.adc import ADC, attach_adc
 from appsim.bus import Bus
+from appsim.glcd import GLCD, attach_glcd
+from appsim.interrupts import PeripheralInterrupts, attach_interrupts
 from appsim.loader import load_firmware
 from appsim.mcu import PIC18F8680
 from appsim.sim import Process
+from appsim.timer1 import Timer1, attach_timer1
 
 
 class APP023:
@@ -24,6 +27,9 @@ class APP023:
         self.mcu: PIC18F8680 = bus.attach(PIC18F8680(bus.sim, name))
         self.adc: ADC = attach_adc(self.mcu)
         self.adc.potentiometer = potentiometer
+        self.interrupts: PeripheralInterrupts = attach_interrupts(self.mcu)
+        self.timer1: Timer1 = attach_timer1(self.mcu, self.interrupts)
+        self.glcd: GLCD = attach_glcd(self.mcu)
         self.firmware: ModuleType | None = None
 
     @property
