@@ -4,8 +4,9 @@ Each load is a fresh module, so two boards running the same file never share the
 """
 from __future__ import annotations
 
-import importlib.util
+import ast
 import itertools
+from collections.abc import Mapping
 from pathlib import Path
 from types import ModuleType
 
@@ -16,19 +17,25 @@ class FirmwareError(Exception):
     """A firmware file that cannot run, with what to do about it."""
 
 
-def load_firmware(path: str | Path) -> ModuleType:
-    """Load a firmware file as a new module; it must define `main()`."""
+def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
+    """Load a firmware file as a new module; it must define `main()`.
+
+    `defines` works like `-D MESSAGE_ID1=0x110` on the C18 command line: each name's top-level
+    assignment (`MESSAGE_ID1 = 0x100`) gets the given value instead, and constants computed from it
+    follow. Six stations run one solution file with six identifiers this way.
+    """
     path = Path(path)
-    if not path.is_file():
-        raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py file such as "
-                            "exercises/ex1.py")
-    spec = importlib.util.spec_from_file_location(f"firmware_{path.stem}_{next(_loads)}", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
+    tree = _parse(path)
+    if defines:
+        _apply_defines(tree, defines, path)
     try:
-        spec.loader.exec_module(module)
+        code = compile(tree, str(path), "exec")
     except SyntaxError as error:
         raise FirmwareError(f"{path}, line {error.lineno}: {error.msg}: fix the Python syntax there") from None
+    module = ModuleType(f"firmware_{path.stem}_{next(_loads)}")
+    module.__file__ = str(path)
+    try:
+        exec(code, vars(module))
     except Exception as error:
         raise FirmwareError(f"{path} failed while loading, before main() ran: {type(error).__name__}: "
                             f"{error}. Only constants and functions belong at the top of the file; "
@@ -37,3 +44,47 @@ def load_firmware(path: str | Path) -> ModuleType:
         raise FirmwareError(f"{path} has no main(): a firmware file defines `def main():` that loops "
                             "forever, as main() does in EX1.C")
     return module
+
+
+def constants(path: str | Path) -> list[str]:
+    """The names a firmware file assigns at top level (`NAME = <expr>`): the ones `defines` can replace."""
+    return list(_assignments(_parse(Path(path))))
+
+
+def _parse(path: Path) -> ast.Module:
+    if not path.is_file():
+        raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py file such as "
+                            "exercises/ex1.py")
+    try:
+        return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    except SyntaxError as error:
+        raise FirmwareError(f"{path}, line {error.lineno}: {error.msg}: fix the Python syntax there") from None
+
+
+def _assignments(tree: ast.Module) -> dict[str, list[ast.Assign | ast.AnnAssign]]:
+    assigned: dict[str, list[ast.Assign | ast.AnnAssign]] = {}
+    for statement in tree.body:
+        if isinstance(statement, ast.Assign) and len(statement.targets) == 1:
+            target = statement.targets[0]
+        elif isinstance(statement, ast.AnnAssign) and statement.value is not None:
+            target = statement.target
+        else:
+            continue
+        if isinstance(target, ast.Name):
+            assigned.setdefault(target.id, []).append(statement)
+    return assigned
+
+
+def _apply_defines(tree: ast.Module, defines: Mapping[str, int], path: Path) -> None:
+    """Replace the value of each top-level `NAME = <expr>` named in `defines` (in place)."""
+    assigned = _assignments(tree)
+    for name, value in defines.items():
+        if name not in assigned:
+            raise FirmwareError(
+                f"-D {name}: {path} has no top-level assignment `{name} = ...` to replace. It defines "
+                f"{', '.join(assigned) or 'no constants'}; a define replaces one of those, as the C18 "
+                "command line's -D replaces a #define.")
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise FirmwareError(f"-D {name}={value!r}: a define is an integer, such as {name}=0x110")
+        for statement in assigned[name]:
+            statement.value = ast.copy_location(ast.Constant(value), statement.value)

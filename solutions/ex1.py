@@ -5,7 +5,9 @@ does not drive CANTX: the frame goes from TXB0 straight to the message assembly 
 and from there through the acceptance masks and filters into RXB0 or RXB1.
 
 Send a standard data frame with ID MESSAGE_ID1 and 5 bytes: 01 02 03 ADRESH ADRESL
-(the A/D result of channel 0, the potentiometer). Then wait for it with CANIsRxReady().
+(the A/D result of channel 0, the potentiometer). Then wait for it with CANIsRxReady(). The LCD
+shows the transmitted ID on line 2 (hex) and, once the frame is received, its A/D value on line 3
+(decimal, 0..1023) and the received ID on line 4 (hex).
 
 Question: will RXB0 receive the data you sent? Normally, no! Why?
 
@@ -46,9 +48,18 @@ def read_potentiometer():
 def main():
     OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_1ANA,
             ADC_CH0 & ADC_INT_OFF & ADC_VREFPLUS_VDD & ADC_VREFMINUS_VSS)
+    GLCD_Initial()
+    setcurGLCD(1, 1)
+    putrsGLCD("EX1 LOOPBACK")
+    setcurGLCD(2, 1)
+    putsGLCD("TX ID  0x%03X" % MESSAGE_ID1)
     CANInitialization()
     read_potentiometer()
     CANSendMessage(MESSAGE_ID1, TxData, 5, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_NO_RTR_FRAME)
     while True:
         if CANIsRxReady():                          # is your TX data in the RX buffer?
             RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            setcurGLCD(3, 1)
+            putsGLCD("A/D    %4d" % ((RxData[3] << 8) | RxData[4]))
+            setcurGLCD(4, 1)
+            putsGLCD("RX ID  0x%03X" % RX_ID1)
