@@ -11,12 +11,14 @@ from typing import Any
 
 from appsim.adc import ADC, attach_adc
 from appsim.bus import Bus
+from appsim.dsw2 import attach_dsw2
 from appsim.glcd import GLCD, attach_glcd
 from appsim.interrupts import PeripheralInterrupts, attach_interrupts
 from appsim.loader import load_firmware
 from appsim.mcu import PIC18F8680
 from appsim.sim import Process
 from appsim.timer1 import Timer1, attach_timer1
+from appsim.usart import USART, SerialEnd, attach_usart
 
 
 class APP023:
@@ -30,6 +32,10 @@ class APP023:
         self.interrupts: PeripheralInterrupts = attach_interrupts(self.mcu)
         self.timer1: Timer1 = attach_timer1(self.mcu, self.interrupts)
         self.glcd: GLCD = attach_glcd(self.mcu)
+        self.dsw2, self.portj = attach_dsw2(self.mcu)      # DSW2 5 6 ON; positions 1 2 on RJ0 RJ1
+        self.usart: USART = attach_usart(self.mcu, self.interrupts, self.dsw2)
+        self.usb: SerialEnd = self.usart.usb         # the PIC18F2550 USB-CDC monitor's end (DSW2 5 6 ON)
+        self.con9: SerialEnd = self.usart.con9       # the RS-232 connector's end (DSW2 3 4 ON)
         self.firmware: ModuleType | None = None
 
     @property

@@ -4,11 +4,12 @@ The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit str
 """
 from __future__ import annotations
 
-from appsim import adc, an738, glcd, interrupts, timer1
+from appsim import adc, an738, dsw2, glcd, interrupts, timer1, usart
 from appsim.adc import *  # noqa: F403  (MPLAB C18 adc.h)
 from appsim.an738 import *  # noqa: F403  (the library's names, as the C header puts them in scope)
 from appsim.glcd import *  # noqa: F403  (APP023_GLCD.h)
 from appsim.timer1 import *  # noqa: F403  (MPLAB C18 timers.h)
+from appsim.usart import *  # noqa: F403  (MPLAB C18 usart.h)
 from appsim.ecan.registers import BITFIELDS as _CAN_BITFIELDS
 from appsim.mcu import CALL_CYCLES, current_mcu
 
@@ -63,8 +64,8 @@ def Delay10KTCYx(unit: int) -> None:
     current_mcu().spend_cycles(CALL_CYCLES + 10_000 * unit)
 
 
-BITFIELDS = _CAN_BITFIELDS | adc.BITFIELDS | interrupts.BITFIELDS | timer1.BITFIELDS
+BITFIELDS = _CAN_BITFIELDS | adc.BITFIELDS | interrupts.BITFIELDS | timer1.BITFIELDS | usart.BITFIELDS | dsw2.BITFIELDS
 SFR = _SFRs()
 globals().update({f"{register}bits": _Bits(register, fields) for register, fields in BITFIELDS.items()})
 
-__all__ = list(an738.__all__) + list(adc.__all__) + list(timer1.__all__) + list(glcd.__all__) + ["SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx"] + [f"{r}bits" for r in BITFIELDS]
+__all__ = list(an738.__all__) + list(adc.__all__) + list(timer1.__all__) + list(glcd.__all__) + list(usart.__all__) + ["SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx"] + [f"{r}bits" for r in BITFIELDS]
