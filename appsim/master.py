@@ -9,8 +9,9 @@ STATION_IDS = (0x100, 0x110, 0x120, 0x130, 0x140, 0x150)        # polled with RT
 FIRST_RTR_ID, LAST_RTR_ID = 0x81, 0x86                          # requests it answers (Ex5)
 RX_Filter0, RX_Mask0 = 0x080, 0x7F8     # RXB0: IDs 0x080..0x087, the stations' RTR frames
 RX_Filter2, RX_Mask1 = 0x100, 0x70F     # RXB1: IDs 0x1n0, the stations' answers to the polls
-# 50 ms = 62500 counts of Fosc/4 / 8 (0.8 us): preload 65536 - 62500
-TIMER1_PRELOAD = 65536 - 62500
+# 50 ms = 62500 counts of Fosc/4 / 8 (0.8 us each). Reloading must not lose time: the counts since the
+# overflow are added back (ReadTimer1), and so are the 2 counts (16 Tcy) from that read to the write.
+TIMER1_PRELOAD = 65536 - 62500 + 2
 
 TxData = [0x01, 0x02, 0x03, 0x00, 0x00]
 
@@ -59,7 +60,7 @@ def main():
     while True:
         if PIR1bits.TMR1IF:                         # every 50 ms
             PIR1bits.TMR1IF = 0
-            WriteTimer1(ReadTimer1() + TIMER1_PRELOAD)   # add: the counts since the overflow are kept
+            WriteTimer1(ReadTimer1() + TIMER1_PRELOAD)
             broadcast = not broadcast
             if broadcast:
                 send_data(MESSAGE_ID1)
