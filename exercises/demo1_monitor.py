@@ -1,0 +1,31 @@
+"""DEMO1 - A simple CAN monitor (CAN Workshop 202, Demo1, project CAN_Monitor.mcp).
+
+"If your PC has no parallel port": make the APP023 a CAN monitor. Receive every frame on the bus
+and write one line per frame over the USART (19200 baud, 8N1) to the PIC18F2550, which the PC opens
+as a USB-CDC serial port (DSW2 5 & 6 ON). The line format is in docs/monitor-format.md.
+
+This starter prints frames, but it is not a good monitor yet. Run it, watch the port, then:
+  TODO 1: SPBRG for 19200 baud at Fosc = 40 MHz with BRGH = 1: baud = Fosc / (16 x (SPBRG + 1)).
+  TODO 2: a monitor must not change the bus it watches. In Normal mode this node ACKs every frame
+          (a sender alone on the bus would think someone heard it). Which mode never drives the bus?
+  TODO 3: putsUSART waits until the whole line is sent (about 29 ms). What happens to the frames that
+          arrive meanwhile? CANReceiveMessage's flags say when RXB0/RXB1 overflowed: report it.
+The solution (solutions/demo1_monitor.py) also keeps frames in a queue and counts exactly how many it lost.
+"""
+from appsim.firmware import *
+
+SPBRG = 0               # TODO 1
+
+
+def main():
+    OpenUSART(USART_TX_INT_OFF & USART_RX_INT_OFF & USART_ASYNCH_MODE & USART_EIGHT_BIT
+              & USART_CONT_RX & USART_BRGH_HIGH, SPBRG)
+    OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_8 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)
+    CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)     # 125 kbit/s, receive everything
+    # TODO 2: CANSetOperationMode(...)
+    while True:
+        if CANIsRxReady():
+            RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            # TODO 3: if CANMessageFlag & CAN_RX_OVERFLOW: ...
+            seconds = ReadTimer1() * 8 / 10_000_000        # wraps every 52.4 ms: count PIR1bits.TMR1IF
+            putsUSART(f"{seconds:12.6f}  0x{RX_ID1:03X}  DLC {DataLen}  {RxData.hex(' ').upper()}\r\n")

@@ -1,0 +1,170 @@
+"""Demo1, the CAN monitor: what a PC reading the USB-CDC port sees, against what was on the bus."""
+from __future__ import annotations
+
+import re
+import threading
+from pathlib import Path
+
+import pytest
+import serial
+
+from appsim.board import APP023
+from appsim.bus import Bus
+from appsim.firmware import *  # noqa: F403
+from appsim.mcu import PIC18F8680
+from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.usbcdc import UsbCdc
+
+KIT = Path(__file__).resolve().parent.parent
+SOLUTION = KIT / "solutions" / "demo1_monitor.py"
+STARTER = KIT / "exercises" / "demo1_monitor.py"
+CLASSROOM = (4, 10, 8, 4, 3)
+
+# The documented line format (docs/monitor-format.md).
+FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD)  (DATA|RTR )  DLC (\d+)"
+                        r"((?:  [0-9A-F]{2}(?: [0-9A-F]{2})*)?)$")
+LOST_LINE = re.compile(r"^# lost (\d+) frames? \(queue full: the USART at 19200 baud is slower than the bus\)$")
+
+
+def sender(frames, *, start_ms: float, gap_ms: float):
+    """Firmware sending `frames` (id, flags, data) one after the other, `gap_ms` apart."""
+    def main():
+        CANInitialize(*CLASSROOM, CAN_CONFIG_ALL_MSG)
+        Delay1KTCYx(round(start_ms * 10))
+        for can_id, flags, data in frames:
+            while not CANSendMessage(can_id, data, len(data), flags):
+                pass
+            Delay1KTCYx(round(gap_ms * 10))
+        while True:
+            if CANIsRxReady():
+                CANReceiveMessage()
+    return main
+
+
+class Classroom:
+    """A bus at 125 kbit/s, senders, and the monitor board running Demo1 with its bridge."""
+
+    def __init__(self, transport="pty", firmware=SOLUTION):
+        self.sim = Simulator()
+        self.bus = Bus(self.sim)
+        self.board = APP023(self.bus, "monitor")
+        self.board.run(firmware)
+        self.usb = UsbCdc(self.board, transport=transport)
+
+    def node(self, name, main):
+        self.bus.attach(PIC18F8680(self.sim, name)).run(main)
+
+    def run(self, seconds):
+        self.sim.run(until=self.sim.now + round(seconds * PS_PER_SECOND))
+        for process in self.sim.processes:
+            assert process.failure is None, f"firmware {process.name} crashed:\n{process.failure_text}"
+
+
+def read_while_running(classroom, port, seconds):
+    """Run the simulation while a thread reads from the PC side, as a terminal would; the lines read."""
+    received, done = bytearray(), threading.Event()
+
+    def reader():
+        while not (done.is_set() and not port.in_waiting):
+            received.extend(port.read(max(1, port.in_waiting)))
+
+    thread = threading.Thread(target=reader)
+    thread.start()
+    try:
+        classroom.run(seconds)
+    finally:
+        done.set()
+        thread.join(timeout=5)
+    text = received.decode("ascii")
+    assert text.endswith("\r\n"), "each line ends in CR LF"
+    return text.removesuffix("\r\n").split("\r\n")
+
+
+def parse(line):
+    match = FRAME_LINE.match(line)
+    assert match, f"not a frame line in the documented format: {line!r}"
+    time, ident, kind, what, dlc, data = match.groups()
+    return (float(time), int(ident, 16), kind == "XTD", what == "RTR ", int(dlc),
+            bytes.fromhex(data.replace(" ", "")))
+
+
+def on_the_bus(event):
+    frame = event.frame
+    return frame.can_id, frame.extended, frame.remote, frame.dlc, frame.data
+
+
+MIXED = [
+    (0x088, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME, [1, 2, 3, 2, 0x9A]),
+    (0x1ABCDE00, CAN_TX_PRIORITY_0 & CAN_TX_XTD_FRAME, [0xAA]),
+    (0x081, CAN_TX_PRIORITY_0 & CAN_TX_RTR_FRAME, [0] * 5),
+    (0x7FF, CAN_TX_PRIORITY_0, []),
+    (0x100, CAN_TX_PRIORITY_0, list(range(8))),
+]
+
+
+def test_the_monitor_prints_exactly_the_frames_on_the_bus_in_order_with_their_times():
+    room = Classroom()
+    room.node("a", sender(MIXED, start_ms=2, gap_ms=40))
+    room.node("b", sender([(0x110 + k, CAN_TX_PRIORITY_0, [k, 0x55]) for k in range(5)], start_ms=3, gap_ms=35))
+    with room.usb, serial.Serial(room.usb.port, timeout=0.05) as port:
+        lines = read_while_running(room, port, 0.5)
+    assert lines[0].startswith("# APP023 CAN monitor (Demo1)")
+    printed = [parse(line) for line in lines[1:]]
+    frames = room.bus.frames()
+    assert len(frames) == 10 and len(room.bus.trace) == 10
+    assert [p[1:] for p in printed] == [on_the_bus(e) for e in frames]
+    # The monitor's clock is Timer1: its gaps between lines are the gaps between the frames' ends.
+    for (time, *_), event in zip(printed, frames):
+        gap_monitor = time - printed[0][0]
+        gap_bus = (event.end_ps - frames[0].end_ps) / PS_PER_SECOND
+        assert abs(gap_monitor - gap_bus) < 50e-6
+    # Listen-only: the monitor never ACKed anything.
+    assert all("monitor" not in e.acked_by for e in frames)
+
+
+def test_a_busy_bus_outruns_the_usart_and_the_monitor_says_how_many_frames_it_lost():
+    room = Classroom()
+    for n, base in enumerate((0x200, 0x300, 0x400)):      # three nodes sending back to back for ~40 ms
+        room.node(f"busy{n}", sender([(base + k, CAN_TX_PRIORITY_0, [k] * 8) for k in range(16)],
+                                     start_ms=2, gap_ms=0))
+    with room.usb, serial.Serial(room.usb.port, timeout=0.05) as port:
+        lines = read_while_running(room, port, 1.5)       # 48 frames; 17 lines take ~0.5 s at 19200 baud
+    frames = [on_the_bus(e) for e in room.bus.frames()]
+    assert len(frames) == 48
+    # Walk the bus trace: each printed frame is the next one on the bus, after skipping exactly as
+    # many as the preceding "# lost N frames" line says.
+    position, lost_total = 0, 0
+    for line in lines[1:]:
+        lost = LOST_LINE.match(line)
+        if lost:
+            position += int(lost.group(1))
+            lost_total += int(lost.group(1))
+            continue
+        assert parse(line)[1:] == frames[position], f"line {line!r} is not bus frame #{position}"
+        position += 1
+    assert position == len(frames), "printed frames + lost counts add up to every frame on the bus"
+    assert lost_total > 0
+    assert room.usb.lost_bytes == 0 and room.board.usb.lost == 0
+
+
+def test_the_socket_fallback_serves_the_same_lines_to_serial_for_url():
+    room = Classroom(transport="socket")
+    room.node("a", sender(MIXED, start_ms=2, gap_ms=30))
+    room.node("b", sender([], start_ms=0, gap_ms=0))      # someone must ACK: the monitor never does
+    assert room.usb.url.startswith("socket://127.0.0.1:") and room.usb.port is None
+    with room.usb, serial.serial_for_url(room.usb.url, timeout=0.05) as port:
+        lines = read_while_running(room, port, 0.3)
+    assert [parse(line)[1:] for line in lines[1:]] == [on_the_bus(e) for e in room.bus.frames()]
+    assert len(lines) == 1 + len(MIXED)
+
+
+def test_the_starter_prints_frames_but_still_has_its_todos():
+    """Unchanged, the starter runs its USART at 2.5 Mbaud (SPBRG 0) and ACKs frames (Normal mode)."""
+    room = Classroom(firmware=STARTER)
+    room.node("a", sender(MIXED[:2], start_ms=2, gap_ms=30))
+    room.node("b", sender([], start_ms=0, gap_ms=0))
+    room.run(0.2)
+    assert room.board.usart.baud > 2_000_000
+    assert room.bus.frames() and all("monitor" in e.acked_by for e in room.bus.frames()), (
+        "without TODO 2 the monitor is in Normal mode and ACKs: it takes part in the bus it watches")
+    room.usb.close()
