@@ -9,7 +9,12 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
-from appsim.an738 import CAN_CONFIG_ALL_MSG, CANInitialize, CANIsRxReady, CANReceiveMessage
+from appsim.an738 import (
+    CAN_CONFIG_FLAGS,
+    CANInitialize,
+    CANIsRxReady,
+    CANReceiveMessage,
+)
 from appsim.board import APP023
 from appsim.bus import Bus
 from appsim.loader import FirmwareError, constants, load_firmware
@@ -37,7 +42,7 @@ def pc_monitor_interface() -> None:
     The workshop needs it: in Ex4 every student starts in Listen-only mode, which never ACKs, so
     without it nobody would acknowledge the master's 0x088.
     """
-    CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
+    CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_FLAGS.CAN_CONFIG_ALL_MSG)
     while True:
         if CANIsRxReady():
             CANReceiveMessage()     # CANKing lists it; here, read `bus.trace`

@@ -87,4 +87,4 @@ def _apply_defines(tree: ast.Module, defines: Mapping[str, int], path: Path) -> 
         if not isinstance(value, int) or isinstance(value, bool):
             raise FirmwareError(f"-D {name}={value!r}: a define is an integer, such as {name}=0x110")
         for statement in assigned[name]:
-            statement.value = ast.copy_location(ast.Constant(value), statement.value)
+            statement.value = ast.copy_location(ast.Constant(value), statement)
