@@ -9,25 +9,14 @@ import os
 import socket
 import sys
 import tty
-from typing import Any, Literal, Protocol
+from typing import Literal
 
+from appsim.board import APP023
 from appsim.sim import PS_PER_SECOND
 
 log = logging.getLogger(__name__)
 
 READ_CHUNK = 4096
-
-
-class SerialEnd(Protocol):
-    """The PC side of one USART link on the board (`board.usb`)."""
-
-    listeners: list[Any]
-
-    def write(self, data: bytes) -> None: ...
-
-
-class HasUsb(Protocol):
-    usb: SerialEnd
 
 
 class UsbCdc:
@@ -44,7 +33,7 @@ class UsbCdc:
     real bridge whose PC stopped reading: `lost_bytes` counts them and a warning says so.
     """
 
-    def __init__(self, board: HasUsb, *, transport: Literal["pty", "socket"] = "pty"):
+    def __init__(self, board: APP023, *, transport: Literal["pty", "socket"] = "pty"):
         if transport not in ("pty", "socket"):
             raise ValueError(f"transport is 'pty' (a serial port path) or 'socket' (socket://127.0.0.1:PORT), "
                              f"not {transport!r}")
@@ -75,23 +64,21 @@ class UsbCdc:
             return
         if self.transport == "pty":
             try:
-                sent = os.write(self._master, bytes((byte,)))
+                os.write(self._master, bytes((byte,)))
             except BlockingIOError:
-                sent = 0
-            reason = "the PC is not reading the serial port and its buffer is full"
-        else:
-            connection, sent = self._connected(), 0
-            if connection is not None:
-                try:
-                    sent = connection.send(bytes((byte,)))
-                except BlockingIOError:
-                    pass
-                except OSError:
-                    self._hang_up()
-            reason = "no program is connected to the socket" if connection is None else \
-                "the program on the socket is not reading and its buffer is full"
-        if not sent:
-            self._lose(time_ps, reason)
+                self._lose(time_ps, "the PC is not reading the serial port and its buffer is full")
+            return
+        connection = self._connected()
+        if connection is None:
+            self._lose(time_ps, "no program is connected to the socket")
+            return
+        try:
+            connection.send(bytes((byte,)))
+        except BlockingIOError:
+            self._lose(time_ps, "the program on the socket is not reading and its buffer is full")
+        except OSError:
+            self._hang_up()
+            self._lose(time_ps, "the program on the socket went away")
 
     def _lose(self, time_ps: int, reason: str) -> None:
         self.lost_bytes += 1
@@ -109,7 +96,7 @@ class UsbCdc:
         if self.transport == "pty":
             try:
                 data = os.read(self._master, READ_CHUNK)
-            except (BlockingIOError, OSError):
+            except BlockingIOError:
                 pass
         else:
             connection = self._connected()

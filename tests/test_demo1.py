@@ -5,7 +5,6 @@ import re
 import threading
 from pathlib import Path
 
-import pytest
 import serial
 
 from appsim.board import APP023
