@@ -102,3 +102,31 @@ def test_trace_is_identical_when_the_same_scenario_runs_twice():
         return w.bus.trace
     first, second = scenario(), scenario()
     assert len(first) == 14 and first == second
+
+
+def test_bus_off_after_repeated_errors_and_recovery_after_128_sequences_of_11_recessive_bits(world):
+    """Two nodes send ID 0x100 at once with different data: a bit error each time, TEC += 8 for both,
+    error-passive at 128, bus-off at 256. Bus-off ends after 128 x 11 recessive bits, with TEC = 0."""
+    def clash(value):
+        def main():
+            CANInitialize(*CLASSROOM, CAN_CONFIG_ALL_MSG)
+            CANSendMessage(0x100, [value], 1, CAN_TX_STD_FRAME)
+            while True:
+                CANIsRxReady()
+        return main
+
+    a = world.node("a", clash(0xAA))
+    world.node("b", clash(0xBB))
+    world.node("listener", normal_node())
+    seen_off = []
+    while not seen_off:
+        world.run(0.001)
+        if a.ecan.bus_off:
+            seen_off.append(world.sim.now)
+    trace = world.bus.trace
+    assert len(trace) == 32 and all("two nodes sent identifier 0x100" in e.error for e in trace)
+    recessive_from = trace[-1].end_ps - 8 * world.bus.bit_ps     # the error delimiter is recessive
+    world.run(0.012)
+    back = world.bus.trace[32]
+    assert (back.start_ps - recessive_from) // world.bus.bit_ps == 128 * 11
+    assert a.ecan.tec >= 8 and not a.ecan.error_passive, "recovered error-active, counters reset"

@@ -1,0 +1,81 @@
+"""The simulated clock: busy-waiting is cheap, and a run gives the same trace however loaded the machine is."""
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from appsim.firmware import *  # noqa: F403
+from appsim.sim import PS_PER_SECOND
+
+SEVEN_NODES = """
+import hashlib, sys
+sys.path.insert(0, {tests!r})
+from conftest import World
+from test_bus_gotchas import normal_node
+from appsim.firmware import CAN_TX_PRIORITY_0, CAN_TX_PRIORITY_1
+w = World()
+for k in range(7):
+    w.node(f"n{{k}}", normal_node([(0x100 + 0x10 * k, CAN_TX_PRIORITY_0), (0x081 + k, CAN_TX_PRIORITY_1)],
+                                  delay_ms=k * 0.37))
+w.run(0.2)
+print(len(w.bus.trace), hashlib.sha256(repr(w.bus.trace).encode()).hexdigest())
+"""
+
+
+def test_a_firmware_busy_waiting_one_second_for_a_frame_runs_its_loop_a_handful_of_times(world):
+    """The frame comes 1 s (simulated) later; the polling loop sees nothing new until then, so it parks."""
+    turns = []
+
+    def waiter():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        count = 0
+        while not CANIsRxReady():
+            count += 1
+        turns.append(count)
+        turns.append(CANReceiveMessage())
+
+    def late_sender():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        Delay10KTCYx(250)
+        Delay10KTCYx(250)
+        Delay10KTCYx(250)
+        Delay10KTCYx(250)                           # 4 x 250 ms
+        CANSendMessage(0x100, [1, 2, 3], 3, CAN_TX_STD_FRAME)
+
+    world.node("waiter", waiter)
+    world.node("sender", late_sender)
+    started = time.perf_counter()
+    world.run(1.1)
+    wall = time.perf_counter() - started
+    received_at = world.bus.frames()[0].end_ps / PS_PER_SECOND
+    assert 1.0 < received_at < 1.001
+    count, message = turns
+    assert (message.id, bytes(message.data[:message.length])) == (0x100, b"\x01\x02\x03")
+    assert count < 10, f"the polling loop ran {count} times: it should park until the frame arrives"
+    print(f"1.1 s simulated with a 1 s busy-wait: {wall * 1e3:.1f} ms wall, {count} loop turns")
+
+
+def test_seven_node_trace_is_identical_in_separate_processes_even_under_load():
+    script = SEVEN_NODES.format(tests=str(Path(__file__).parent))
+    env = {**os.environ, "PYTHONHASHSEED": "random"}
+
+    def run() -> str:
+        return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True,
+                              env=env, timeout=120).stdout
+
+    quiet = run()
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 2)]
+    try:
+        loaded = run()
+    finally:
+        for burner in burners:
+            burner.kill()
+            burner.wait()
+    frames, digest = quiet.split()
+    assert int(frames) >= 14
+    assert loaded == quiet, "the trace changed when the machine was busy: simulated time leaked wall time"
+    assert hashlib.sha256(b"").hexdigest() != digest
