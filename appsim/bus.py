@@ -221,6 +221,10 @@ class Bus:
                 return port.mcu
         raise KeyError(f"no node named {name!r} on this bus")
 
+    def boards(self) -> list[PIC18F8680]:
+        """The simulated boards on this bus, in the order they were attached."""
+        return [port.mcu for port in self.ports if isinstance(port, _BoardPort)]
+
     def attach_outside(self, outside: Outside) -> None:
         """Join the rest of a real bus (see `appsim.link`): it ACKs every frame and sends its own."""
         self.ports.append(_LinkPort(outside))

@@ -1,0 +1,69 @@
+"""The CANKing-like monitor: trace lines, bus load, error counters, and logs other CAN tools open."""
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import can
+import pytest
+
+from appsim.monitor import HEADER, bus_load, error_counters, format_event, summary, write_log
+from test_bus_gotchas import normal_node
+from appsim.firmware import *  # noqa: F403
+
+
+@pytest.fixture
+def traffic(world):
+    world.node("a", normal_node([(0x100, CAN_TX_STD_FRAME), (0x1ABCDE, CAN_TX_XTD_FRAME)], delay_ms=1))
+    world.node("b", normal_node([(0x088, CAN_TX_STD_FRAME & CAN_TX_RTR_FRAME)], delay_ms=1))
+    world.node("quiet", normal_node(mode=CAN_OP_MODE_LISTEN))
+    world.run(0.02)
+    return world
+
+
+def test_trace_lines_show_id_kind_dlc_data_sender_and_who_acked(traffic):
+    lines = [format_event(e) for e in traffic.bus.trace]
+    assert "ID" in HEADER and "ACK by" in HEADER
+    rtr, ext, std = lines          # equal TX priority: TXB1 (the extended frame) leaves before TXB0
+    assert rtr.split()[1:5] == ["b", "088", "STD", "RTR"] and rtr.endswith("a")
+    assert std.split()[1:8] == ["a", "100", "STD", "3", "01", "02", "03"] and std.endswith("b")
+    assert ext.split()[1:4] == ["a", "001ABCDE", "EXT"]
+
+
+def test_bus_load_is_the_share_of_time_frames_occupy(traffic):
+    trace = traffic.bus.trace
+    busy = sum(e.end_ps - e.start_ps for e in trace)
+    assert bus_load(trace, 0, traffic.sim.now) == pytest.approx(busy / traffic.sim.now)
+    assert bus_load(trace, trace[0].start_ps, trace[0].end_ps) == 1.0
+    assert "3 frames, 0 error frames" in summary(traffic.bus)
+
+
+def test_error_counters_show_an_ack_error_victim(world):
+    world.node("alone", normal_node([(0x100, CAN_TX_STD_FRAME)], delay_ms=1))
+    world.node("listener", normal_node(mode=CAN_OP_MODE_LISTEN))
+    world.run(0.2)
+    table = error_counters(world.bus).splitlines()
+    assert table[1].split() == ["alone", "normal", "128", "0", "error-passive"]
+    assert table[2].split() == ["listener", "listen-only", "0", "0", "error-active"]
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
+def test_logs_read_back_with_python_can(traffic, tmp_path, suffix):
+    path = write_log(traffic.bus.trace, tmp_path / f"trace{suffix}")
+    messages = list(can.LogReader(path))
+    assert [(m.arbitration_id, m.is_extended_id, m.is_remote_frame, bytes(m.data)) for m in messages] == [
+        (0x088, False, True, b""), (0x1ABCDE, True, False, b"\x01\x02\x03"), (0x100, False, False, b"\x01\x02\x03")]
+    spacing = (traffic.bus.trace[2].end_ps - traffic.bus.trace[0].end_ps) / 1e12   # .asc counts from its start
+    assert messages[2].timestamp - messages[0].timestamp == pytest.approx(spacing, abs=1e-6)
+
+
+@pytest.mark.skipif(shutil.which("log2asc") is None, reason="can-utils' log2asc not installed (apt-get install can-utils)")
+def test_candump_log_is_read_by_can_utils(traffic, tmp_path):
+    path = write_log(traffic.bus.trace, tmp_path / "trace.log")
+    asc = subprocess.run(["log2asc", "-I", str(path), "vcan0"], capture_output=True, text=True, check=True).stdout
+    assert "88" in asc and "1ABCDEx" in asc
+
+
+def test_unknown_log_format_says_which_ones_work(traffic, tmp_path):
+    with pytest.raises(ValueError, match=r"\.log \(candump\)"):
+        write_log(traffic.bus.trace, tmp_path / "trace.xyz")
