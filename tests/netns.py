@@ -34,7 +34,7 @@ _networks = itertools.count()
 def ip(*args: str, namespace: str | None = None) -> None:
     """Run `ip [-n NAMESPACE] ARGS...`; fails with ip's own message."""
     command = ["ip", *(["-n", namespace] if namespace else []), *args]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=10)
+    result = subprocess.run(command, capture_output=True, text=True, timeout=10, check=False)
     if result.returncode != 0:
         raise RuntimeError(f"{' '.join(command)} failed: {result.stderr.strip()}")
 
@@ -130,6 +130,7 @@ class Namespace:
         return subprocess.run(
             ["ip", "netns", "exec", self.name, sys.executable, "-c", code, *args], cwd=KIT,
             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=timeout,
+            check=False,
         )
 
 
@@ -164,7 +165,7 @@ def network(count: int = 3) -> Iterator[list[Namespace]]:
             for process in pc.processes:
                 process.kill()
         for name in made:
-            subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10)
+            subprocess.run(["ip", "netns", "del", name], capture_output=True, timeout=10, check=False)
 
 
 @pytest.fixture

@@ -8,7 +8,6 @@ import socket
 
 import pytest
 from can.interfaces.udp_multicast import UdpMulticastBus
-
 from netns import HostWatch, namespaces, unavailable  # noqa: F401 - namespaces is a fixture
 
 pytestmark = pytest.mark.netns

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import xml.etree.ElementTree as ElementTree
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
-
 from vcan_harness import has_vcan, run_in_uml, uml_missing
 
 

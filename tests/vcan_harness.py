@@ -46,7 +46,7 @@ def run_in_uml(command: Sequence[str], *, timeout: float = 300.0, vcan: int = 1,
     return subprocess.run(
         [sys.executable, str(VCAN_UML), "--timeout", str(timeout), "--vcan", str(vcan), *options, "--", *command],
         cwd=KIT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        timeout=timeout + 60,
+        timeout=timeout + 60, check=False,
     )
 
 
@@ -120,6 +120,6 @@ class Candump:
 
 def cansend(frame: str, channel: str = "vcan0") -> None:
     """`cansend CHANNEL FRAME`, e.g. cansend("123#DEADBEEF"); fails with cansend's own message if it refuses."""
-    result = subprocess.run(["cansend", channel, frame], capture_output=True, text=True, timeout=10)
+    result = subprocess.run(["cansend", channel, frame], capture_output=True, text=True, timeout=10, check=False)
     if result.returncode != 0:
         raise AssertionError(f"cansend {channel} {frame} failed: {result.stderr.strip() or result.stdout.strip()}")

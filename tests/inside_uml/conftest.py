@@ -8,8 +8,8 @@ from pathlib import Path
 
 import can
 import pytest
-
-from vcan_harness import Candump, cansend as _cansend, has_vcan, inside_uml
+from vcan_harness import Candump, has_vcan, inside_uml
+from vcan_harness import cansend as _cansend
 
 HERE = Path(__file__).resolve().parent
 
