@@ -177,7 +177,7 @@ def namespaces() -> Iterator[Callable[[int], list[Namespace]]]:
         yield lambda count=3: stack.enter_context(network(count))
 
 
-ETH_P_ALL, SOL_PACKET, PACKET_STATISTICS = 0x0003, 263, 6
+ETH_P_ALL, SOL_PACKET, PACKET_STATISTICS, SO_RCVBUFFORCE = 0x0003, 263, 6, 33
 ETH_P_IP, ETH_P_IPV6, IPPROTO_UDP = 0x0800, 0x86DD, 17
 
 
@@ -199,7 +199,7 @@ class HostWatch:
         self.seen: list[str] = []
         self.dropped = 0
         self._socket = socket.socket(socket.AF_PACKET, socket.SOCK_DGRAM, socket.htons(ETH_P_ALL))
-        self._socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
+        self._socket.setsockopt(socket.SOL_SOCKET, SO_RCVBUFFORCE, 8 << 20)  # root may exceed rmem_max
         self._socket.settimeout(0.05)
         self._stop = threading.Event()
         self._reader = threading.Thread(target=self._read, daemon=True)
