@@ -1,6 +1,6 @@
 """The `appsim` command: run the workshop's firmware on simulated APP023 boards from a terminal.
 
-`appsim demo` is the kit's main job; `appsim board FILE` runs one firmware file; `appsim bittiming` calculates.
+`appsim demo` is the kit's main job; `board`, `classroom`, `monitor` run firmware; `bittiming` calculates.
 """
 from __future__ import annotations
 
@@ -8,13 +8,23 @@ import argparse
 import sys
 from pathlib import Path
 
+from typing import TextIO
+
+import can
+
 from appsim.board import APP023
 from appsim.bus import Bus
-from appsim.loader import FirmwareError
+from appsim.classroom import EXERCISES, SOLUTIONS, STATIONS, Classroom, station_ids
+from appsim.link import BusLink
+from appsim.loader import FirmwareError, constants, load_firmware
+from appsim.monitor import HEADER, LiveTrace, error_counters, summary, write_log
+from appsim.realtime import WallClock
 from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.usbcdc import UsbCdc
 
 KIT = Path(__file__).resolve().parent.parent
 CLASSROOM_BIT_RATE = 125_000
+TRACE_LINES_SHOWN = 40
 
 
 def _potentiometer(text: str) -> int:
@@ -31,43 +41,225 @@ def _seconds(text: str) -> float:
     return value
 
 
-def run_board(firmware: Path, *, seconds: float, potentiometer: int, out=sys.stdout) -> APP023:
-    """One board on its own bus; prints what it sent and what its receive buffers took."""
-    sim = Simulator()
-    bus = Bus(sim, CLASSROOM_BIT_RATE)
-    board = APP023(bus, "station0", potentiometer=potentiometer)
+def _exercise(text: str) -> int:
+    value = int(text.lower().removeprefix("ex"))
+    if value not in EXERCISES:
+        raise argparse.ArgumentTypeError(f"the workshop has exercises 1..6 (EX1.C .. EX6.C); got {text}")
+    return value
+
+
+def _station(text: str) -> int:
+    value = int(text)
+    if not 1 <= value <= STATIONS:
+        raise argparse.ArgumentTypeError(f"stations are numbered 1..{STATIONS} (MESSAGE_ID1 0x100 .. 0x150)")
+    return value
+
+
+class Session:
+    """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time."""
+
+    def __init__(self, args: argparse.Namespace, out: TextIO):
+        self.sim = Simulator()
+        self.bus = Bus(self.sim, CLASSROOM_BIT_RATE)
+        self.out = out
+        self.link: BusLink | None = None
+        self.trace = LiveTrace(self.bus)
+        if getattr(args, "interface", None):
+            try:
+                self.link = BusLink(self.bus, interface=args.interface, channel=args.channel)
+            except (can.CanError, ValueError, OSError, ImportError) as error:
+                raise SystemExit(f"appsim: cannot open the python-can bus interface={args.interface!r} "
+                                 f"channel={args.channel!r}: {error}") from None
+
+    def run(self, seconds: float, *, live: bool) -> None:
+        """Run `seconds` of simulated time; linked, paced to the wall clock with the trace shown live."""
+        if self.link is None:
+            self._fast(seconds)
+            return
+        clock = WallClock(self.sim)
+        clock.add_poller(self.link.poll)
+        if live:
+            clock.add_poller(lambda: self._show(self.trace.new_lines()))
+        print(f"linked to {self.link.outside.channel_info}, running in real time for {seconds:g} s "
+              "(Ctrl-C stops)", file=self.out)
+        try:
+            clock.run(seconds)
+        except KeyboardInterrupt:
+            print("stopped", file=self.out)
+        finally:
+            print(self.link.report(), file=self.out)
+            self.link.close()
+
+    def _fast(self, seconds: float) -> None:
+        end = round(seconds * PS_PER_SECOND)
+        step = PS_PER_SECOND // 2
+        progress = seconds >= 5 and sys.stderr.isatty()
+        while self.sim.now < end:
+            self.sim.run(until=min(self.sim.now + step, end))
+            if progress:
+                print(f"\r  simulated {self.sim.now / PS_PER_SECOND:6.1f} / {seconds:g} s", end="", file=sys.stderr)
+        if progress:
+            print(file=sys.stderr)
+
+    def _show(self, lines: list[str]) -> None:
+        for line in lines:
+            print(line, file=self.out)
+
+    def print_trace(self, limit: int | None = TRACE_LINES_SHOWN) -> None:
+        lines = self.trace.new_lines()
+        print(HEADER, file=self.out)
+        self._show(lines if limit is None else lines[:limit])
+        if limit is not None and len(lines) > limit:
+            print(f"{'':>11}  ... {len(lines) - limit} more frames (see the trace log)", file=self.out)
+        print(summary(self.bus), file=self.out)
+
+
+def print_lcds(boards: list[APP023], out: TextIO) -> None:
+    """Every board's LCD, side by side, three to a row."""
+    for row in range(0, len(boards), 3):
+        group = boards[row:row + 3]
+        print("   ".join(f"{board.name:<23}" for board in group), file=out)
+        screens = [str(board.glcd).splitlines() for board in group]
+        for lines in zip(*screens):
+            print("   ".join(f"{line:<23}" for line in lines), file=out)
+
+
+def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
+    """One PNG with every board's LCD, named, as they would look on the desks."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    columns = min(3, len(boards))
+    rows = -(-len(boards) // columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 2.4 * rows), squeeze=False)
+    for ax in axes.flat:
+        ax.axis("off")
+    for ax, board in zip(axes.flat, boards):
+        board.glcd.picture(ax=ax)
+        ax.set_title(board.name, fontsize=10)
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+    return path
+
+
+def run_board(firmware: Path, *, seconds: float, potentiometer: int, out: TextIO | None = None,
+              args: argparse.Namespace | None = None) -> APP023:
+    """One board on its own bus (or on an outside bus); prints what it did and its LCD."""
+    out = out or sys.stdout
+    session = Session(args or argparse.Namespace(), out)
+    board = APP023(session.bus, "station1", potentiometer=potentiometer)
     process = board.run(firmware)
-    sim.run(until=round(seconds * PS_PER_SECOND))
-    print(f"APP023 'station0' running {firmware} for {seconds:g} s (simulated), "
-          f"potentiometer {potentiometer}, bus {bus.bit_rate // 1000} kbit/s", file=out)
+    print(f"APP023 'station1' running {firmware} for {seconds:g} s (simulated), "
+          f"potentiometer {potentiometer}, bus {session.bus.bit_rate // 1000} kbit/s", file=out)
+    session.run(seconds, live=True)
     mode = board.ecan.opmode.name.replace("_", "-").lower()
     print(f"  ECAN ends in {mode} mode (CANSTAT = 0x{board.ecan.read(0xF6E):02X}), "
           f"TEC {board.ecan.tec}, REC {board.ecan.rec}", file=out)
-    for event in bus.loopback_trace:
+    for event in session.bus.loopback_trace:
         print(f"  {event.start_ps / PS_PER_SECOND:10.6f} s  sent {event.frame}  (loopback: inside the chip)",
               file=out)
         for _, what in event.received:
             print(f"  {event.end_ps / PS_PER_SECOND:10.6f} s  received: {what}", file=out)
-    for event in bus.trace:
-        print(f"  {event}", file=out)
-    print(f"  frames on the bus: {len(bus.trace)}", file=out)
+    if session.link is None:
+        session.print_trace()
+    print(board.glcd, file=out)
     if process.failure is not None:
         print(f"  the firmware stopped with an error:\n{process.failure_text}", file=out)
     return board
 
 
+def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
+    """The classroom mid-workshop: station k works on exercise k, so every kind of traffic is on the bus."""
+    classroom = Classroom(bus, 6, seed=seed)
+    for k in range(1, STATIONS):
+        classroom.join(SOLUTIONS / f"ex{k}.py", k, defines=station_defines(SOLUTIONS / f"ex{k}.py", k))
+    return classroom
+
+
+def station_defines(firmware: Path, station: int) -> dict[str, int]:
+    names = constants(firmware)
+    return {name: value for name, value in station_ids(station).items() if name in names}
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
-    print("Ex1, the workshop's first exercise: one board in Loopback mode sends itself a frame.\n")
-    print("1. The starter as handed out (RX_Filter0 = 0x088, mask 0x7FF): will RXB0 receive it?")
-    run_board(KIT / "exercises" / "ex1.py", seconds=args.seconds, potentiometer=args.potentiometer)
-    print("\n   Normally, no! Loopback still applies the masks and filters, and 0x100 is not 0x088.\n")
-    print("2. The solution (RX_Filter0 = MESSAGE_ID1):")
-    run_board(KIT / "solutions" / "ex1.py", seconds=args.seconds, potentiometer=args.potentiometer)
+    out = sys.stdout
+    session = Session(args, out)
+    classroom = workshop_in_progress(session.bus, args.seed)
+    print("CAN Workshop 202, simulated: the master console and six APP023 stations on one 125 kbit/s bus.\n"
+          "Station k is working on exercise k: Ex1 loopback (off the bus), Ex2 periodic data, Ex3 filters,\n"
+          "Ex4 listen-only first, Ex5 RTR requests to the master, Ex6 answering the master's polls.\n"
+          f"The PC's CAN interface (CANKing's) is on the bus too and ACKs. Running {args.seconds:g} s...\n",
+          file=out)
+    session.run(args.seconds, live=False)
+    session.print_trace()
+    print("\n" + error_counters(session.bus) + "\n", file=out)
+    print_lcds(classroom.boards, out)
+    args.out.mkdir(parents=True, exist_ok=True)
+    log = write_log(session.bus.trace, args.out / "trace.log")
+    asc = write_log(session.bus.trace, args.out / "trace.asc")
+    picture = save_lcd_picture(classroom.boards, args.out / "lcds.png")
+    print(f"\nwrote {log} (candump -L format), {asc} (Vector ASC) and {picture} (every LCD)", file=out)
     return 0
 
 
 def cmd_board(args: argparse.Namespace) -> int:
-    run_board(Path(args.firmware), seconds=args.seconds, potentiometer=args.potentiometer)
+    run_board(Path(args.firmware), seconds=args.seconds, potentiometer=args.potentiometer, args=args)
+    return 0
+
+
+def cmd_classroom(args: argparse.Namespace) -> int:
+    out = sys.stdout
+    session = Session(args, out)
+    classroom = Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
+    if args.join:
+        firmware = load_firmware(args.join)
+        expected = station_ids(args.station)["MESSAGE_ID1"]
+        own = getattr(firmware, "MESSAGE_ID1", expected)
+        if own != expected:
+            print(f"warning: {args.join} has MESSAGE_ID1 = 0x{own:03X} but station {args.station}'s is "
+                  f"0x{expected:03X}. Two nodes sending one ID with different data destroy each other's "
+                  "frames (bit errors): set MESSAGE_ID1 to your station's ID.", file=sys.stderr)
+        classroom.join(firmware, args.station)
+    who = f"; station{args.station} runs {args.join}" if args.join else ""
+    print(f"Classroom at exercise {args.exercise}: the master and six stations running "
+          f"solutions/ex{args.exercise}.py{who}.", file=out)
+    session.run(args.seconds, live=True)
+    if session.link is None:
+        session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN)
+    print("\n" + error_counters(session.bus) + "\n", file=out)
+    print_lcds(classroom.boards, out)
+    if args.log:
+        print(f"wrote {write_log(session.bus.trace, args.log)}", file=out)
+    return 0
+
+
+def cmd_monitor(args: argparse.Namespace) -> int:
+    """Demo1: the classroom plus a board running the CAN monitor, its USB-CDC port open on this PC."""
+    out = sys.stdout
+    session = Session(args, out)
+    Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
+    board = APP023(session.bus, "demo1")
+    if args.slcan:
+        board.dsw2.on(1)
+    board.run(SOLUTIONS / "demo1_monitor.py")
+    with UsbCdc(board, transport=args.transport) as usb:
+        protocol = "SLCAN (python-can: interface='slcan')" if args.slcan else "text lines, 19200 8N1"
+        print(f"Demo1 CAN monitor on the USB-CDC port {usb.url}  [{protocol}]\n"
+              f"  open it with: python -m serial.tools.miniterm {usb.url} 19200   (or screen, minicom)\n"
+              f"  running the classroom (exercise {args.exercise}) in real time for {args.seconds:g} s; "
+              "Ctrl-C stops", file=out)
+        clock = WallClock(session.sim)
+        clock.add_poller(usb.poll)
+        if session.link is not None:
+            clock.add_poller(session.link.poll)
+        try:
+            clock.run(args.seconds)
+        except KeyboardInterrupt:
+            pass
+        print(f"{len(session.bus.frames())} frames on the bus; {usb.lost_bytes} bytes lost on the USB side",
+              file=out)
     return 0
 
 
@@ -85,25 +277,66 @@ def cmd_bittiming(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="appsim",
-        description="A simulated Microchip APP023 CAN training board (PIC18F8680 ECAN + AN738) for "
-                    "CAN Workshop 202. Firmware is a Python file that reads like the workshop's C: "
-                    "`from appsim.firmware import *` and a main() that loops forever.")
+        description="CAN Workshop 202 on simulated Microchip APP023 boards (PIC18F8680 ECAN + AN738). "
+                    "Firmware is a Python file that reads like the workshop's C: "
+                    "`from appsim.firmware import *` and a main() that loops forever. "
+                    "Everything runs on a simulated clock, deterministic, with no hardware; "
+                    "--interface/--channel join any python-can bus (a vcan, a real adapter) in real time.")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    demo = commands.add_parser("demo", help="the main job: Ex1 in loopback, starter then solution",
-                               description="Run Ex1 on one simulated board: the starter, whose filter "
-                                           "rejects its own frame, then the solution.")
-    board = commands.add_parser("board", help="run one firmware file on one simulated board",
-                                description="Run FIRMWARE (a .py file with main()) on one APP023 board "
-                                            "and print what it sent and received.")
+    demo = commands.add_parser(
+        "demo", help="the main job: a whole classroom at work, its trace and every LCD",
+        description="The master console and six stations, station k working on exercise k, for a few "
+                    "simulated seconds: prints the monitor trace, the error counters and every LCD, and "
+                    "writes the trace (candump .log and .asc) and a picture of the LCDs into --out.")
+    demo.add_argument("--out", type=Path, default=Path("appsim-demo"),
+                      help="directory for trace.log, trace.asc and lcds.png (default ./appsim-demo)")
+
+    board = commands.add_parser(
+        "board", help="run one firmware file on one simulated board",
+        description="Run FIRMWARE (a .py file with main()) on one APP023 board (station 1) and print what "
+                    "it sent and received and its LCD. Alone on the simulated bus a Normal-mode node gets "
+                    "no ACK; with --interface/--channel it joins that bus in real time.")
     board.add_argument("firmware", metavar="FIRMWARE", help="path of the firmware file, e.g. exercises/ex1.py")
-    for sub in (demo, board):
-        sub.add_argument("--seconds", type=_seconds, default=0.5,
-                         help="simulated time to run (default 0.5 s)")
-        sub.add_argument("--potentiometer", type=_potentiometer, default=666,
-                         help="the A/D value on AN0, 0..1023 (default 666)")
+    board.add_argument("--potentiometer", type=_potentiometer, default=666,
+                       help="the A/D value on AN0, 0..1023 (default 666)")
+
+    classroom = commands.add_parser(
+        "classroom", help="the master and six stations at one exercise",
+        description="The master console and six stations running the solution of one exercise. "
+                    "--join puts your firmware on a station. With --interface socketcan --channel vcan0 the "
+                    "whole workshop goes on that bus in real time (candump vcan0 shows it).")
+    classroom.add_argument("--exercise", type=_exercise, default=6, help="1..6 (default 6)")
+    classroom.add_argument("--join", metavar="FIRMWARE", help="your firmware file, on --station")
+    classroom.add_argument("--station", type=_station, default=1, help="which station your board is (1..6)")
+    classroom.add_argument("--log", type=Path, help="write the trace: .log (candump), .asc, .blf, .csv, .trc")
+    classroom.add_argument("--full-trace", action="store_true", help="print every frame, not the first 40")
+
+    monitor = commands.add_parser(
+        "monitor", help="Demo1: the CAN monitor's USB-CDC serial port, live",
+        description="The classroom runs in real time with one more board running Demo1, the CAN monitor. "
+                    "Its USB-CDC port appears on this PC as a serial port (a pty) that screen, minicom, "
+                    "pyserial open. --slcan sets DSW2 switch 1: the board speaks SLCAN, so python-can's "
+                    "'slcan' interface can use it as a CAN adapter.")
+    monitor.add_argument("--exercise", type=_exercise, default=2, help="what the classroom runs (default 2)")
+    monitor.add_argument("--slcan", action="store_true", help="SLCAN (Lawicel) protocol instead of text lines")
+    monitor.add_argument("--transport", choices=("pty", "socket"), default="pty",
+                         help="pty (a /dev/pts path) or socket (socket://127.0.0.1:PORT for pyserial)")
+
+    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0), (monitor, 60.0)):
+        sub.add_argument("--seconds", type=_seconds, default=default_seconds,
+                         help=f"simulated time to run (default {default_seconds:g} s)")
+    for sub in (demo, classroom, monitor):
+        sub.add_argument("--seed", type=int, default=202,
+                         help="seed of the stations' potentiometer values (default 202): same seed, same run")
+    for sub in (board, classroom, monitor):
+        sub.add_argument("--interface", help="python-can interface to join: socketcan, virtual, udp_multicast, "
+                                             "pcan, kvaser, slcan ... (default: the simulated bus alone)")
+        sub.add_argument("--channel", help="python-can channel, e.g. vcan0, can0, /dev/ttyACM0")
     demo.set_defaults(handler=cmd_demo)
     board.set_defaults(handler=cmd_board)
+    classroom.set_defaults(handler=cmd_classroom)
+    monitor.set_defaults(handler=cmd_monitor)
 
     timing = commands.add_parser("bittiming", help="list BRGCON settings for a bit rate",
                                  description="Every valid PIC18F8680 bit timing for a bit rate, best "
