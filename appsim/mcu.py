@@ -65,7 +65,8 @@ class PIC18F8680:
         process = self.process
         return process if process is not None and greenlet.getcurrent() is process else None
 
-    def read(self, address: int) -> int:
+    def read(self, address: int, site: object = None) -> int:
+        """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox)."""
         process = self._in_firmware()
         if process is not None:
             process.spend(self._access_ps)
@@ -73,7 +74,7 @@ class PIC18F8680:
                 if self._stale_version != self.version:
                     self._stale_sites.clear()
                     self._stale_version = self.version
-                site = (address, _firmware_location())
+                site = (address, _firmware_location() if site is None else site)
                 if site in self._stale_sites:
                     process.park()      # a polling loop: nothing can differ until a peripheral event
                 else:
