@@ -377,6 +377,8 @@ class Bus:
             return
         good = [p for p in listeners if p.rate_ok]
         ackers = tuple(p.name for p in good if p.mode == Mode.NORMAL)
+        if isinstance(sender, _LinkPort):
+            ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
         if not ackers:
             self._ack_error(start, bits, sender, buffer, frame, good, wrong_rate)
             return

@@ -37,6 +37,17 @@ def rejection(message: can.Message) -> str | None:
     return None
 
 
+def _key(frame: CanFrame) -> tuple:
+    return frame.can_id, frame.extended, frame.remote, frame.dlc, frame.data
+
+
+def echoes_own_frames(outside: can.BusABC) -> bool:
+    """python-can's udp_multicast hands a bus its own frames back (multicast loopback, which other
+    programs on the same PC need): those echoes must not re-enter the simulated bus."""
+    from can.interfaces.udp_multicast import UdpMulticastBus
+    return isinstance(outside, UdpMulticastBus)
+
+
 def to_frame(message: can.Message) -> CanFrame:
     if message.is_remote_frame:
         return CanFrame(message.arbitration_id, extended=message.is_extended_id, remote=True, dlc=message.dlc)
@@ -58,12 +69,15 @@ class BusLink:
         self.received = 0
         self.rejected: Counter[str] = Counter()
         self.send_failures: Counter[str] = Counter()
+        self._echoes: Counter[tuple] | None = Counter() if echoes_own_frames(self.outside) else None
         bus.attach_outside(self)
 
     def frame_from_simulation(self, frame: CanFrame) -> None:
         try:
             self.outside.send(to_message(frame))
             self.sent += 1
+            if self._echoes is not None:
+                self._echoes[_key(frame)] += 1
         except can.CanError as error:     # e.g. a full transmit queue on the adapter: counted, reported
             self._count(self.send_failures, f"could not send {frame} outside: {error}")
 
@@ -74,8 +88,12 @@ class BusLink:
             if why is not None:
                 self._count(self.rejected, why)
                 continue
+            frame = to_frame(message)
+            if self._echoes is not None and self._echoes[_key(frame)]:
+                self._echoes[_key(frame)] -= 1
+                continue
             self.received += 1
-            self.bus.from_outside(self, to_frame(message))
+            self.bus.from_outside(self, frame)
 
     def _count(self, counter: Counter[str], what: str) -> None:
         if not counter[what]:

@@ -44,7 +44,7 @@ def test_frames_cross_both_ways_over_the_virtual_bus(world, channel):
         world.run(0.01)
         from_outside, echo = world.bus.frames()[1:3]
         assert (from_outside.sender, str(from_outside.frame)) == ("outside", "088 [3] 09 08 07")
-        assert from_outside.acked_by == ("station1",)
+        assert from_outside.acked_by == ("station1", "outside")
         reply = peer.recv(timeout=1)
         assert (reply.arbitration_id, bytes(reply.data)) == (0x100, b"\x88\x09\x08\x07")
         assert (link.sent, link.received) == (2, 1)
@@ -60,6 +60,27 @@ def test_remote_and_extended_frames_keep_their_kind(world, channel):
         world.run(0.01)
         event = world.bus.frames()[1]
         assert event.frame.extended and event.frame.remote and event.frame.dlc == 5
+
+
+def test_a_frame_from_outside_reaches_a_listen_only_node_without_an_ack_error(world, channel):
+    """Out there the frame was ACKed already: a board that only listens still receives it."""
+    received = []
+
+    def listener():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        CANSetOperationMode(CAN_OP_MODE_LISTEN)
+        while True:
+            if CANIsRxReady():
+                received.append(CANReceiveMessage().id)
+
+    with can.Bus(interface="virtual", channel=channel) as peer, \
+            BusLink(world.bus, interface="virtual", channel=channel) as link:
+        world.node("station1", listener)
+        world.run(0.01)
+        peer.send(can.Message(arbitration_id=0x088, data=b"\x05", is_extended_id=False))
+        link.poll()
+        world.run(0.01)
+    assert [e.error for e in world.bus.trace] == [""] and received == [0x088]
 
 
 @pytest.mark.parametrize("message, reason", [
