@@ -149,9 +149,10 @@ def run_board(firmware: Path, *, seconds: float, potentiometer: int, out: TextIO
     """One board on its own bus (or on an outside bus); prints what it did and its LCD."""
     out = out or sys.stdout
     session = Session(args or argparse.Namespace(), out)
-    board = APP023(session.bus, "station1", potentiometer=potentiometer)
+    name = getattr(args, "name", None) or "station1"
+    board = APP023(session.bus, name, potentiometer=potentiometer)
     process = board.run(firmware)
-    print(f"APP023 'station1' running {firmware} for {seconds:g} s (simulated), "
+    print(f"APP023 '{name}' running {firmware} for {seconds:g} s (simulated), "
           f"potentiometer {potentiometer}, bus {session.bus.bit_rate // 1000} kbit/s", file=out)
     session.run(seconds, live=True)
     mode = board.ecan.opmode.name.replace("_", "-").lower()
@@ -300,6 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
     board.add_argument("firmware", metavar="FIRMWARE", help="path of the firmware file, e.g. exercises/ex1.py")
     board.add_argument("--potentiometer", type=_potentiometer, default=666,
                        help="the A/D value on AN0, 0..1023 (default 666)")
+    board.add_argument("--name", default="station1", help="the board's name in the trace (default station1)")
 
     classroom = commands.add_parser(
         "classroom", help="the master and six stations at one exercise",
