@@ -358,6 +358,9 @@ def main(argv: list[str] | None = None) -> int:
     except FirmwareError as error:
         print(f"appsim: {error}", file=sys.stderr)
         return 2
+    except BrokenPipeError:          # `appsim demo | head`: the reader has all it wanted
+        sys.stdout = None
+        return 0
 
 
 if __name__ == "__main__":
