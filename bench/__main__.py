@@ -1,0 +1,119 @@
+"""`python -m bench`: how fast the kit simulates, against the bus's physical limit and python-can, in one table.
+
+Every ratio is measured in the same run on the same machine; `--quick` is a tiny configuration for the tests.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from bench import busywait, fullload, grading, linked, pythoncan
+from bench.figures import Figure, machine, repeat, table
+
+
+@dataclass(frozen=True)
+class Config:
+    runs: int
+    full_load_s: float          # simulated seconds per full-load run
+    scaling_s: float
+    python_can_frames: int
+    busy_wait_s: float
+    linked_s: float             # wall seconds of the Ex2 board linked in real time
+    round_trips: int
+
+
+FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
+              linked_s=1.5, round_trips=10)
+QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
+               linked_s=0.2, round_trips=2)
+
+
+def _full_load(config: Config) -> list[Figure]:
+    runs = [fullload.run(7, 1.0, config.full_load_s) for _ in range(max(config.runs, 1))]
+    last = runs[-1]
+    rtf = Figure("real-time factor: 7 nodes, 1 Mbit/s, 100 % load", "sim s / wall s",
+                 tuple(r.real_time_factor for r in runs), target=1, aim=10,
+                 note=f"load {last.bus_busy:.0%}, firmware read {last.read_by_firmware:.0%} of deliveries")
+    fps = Figure("frames per wall second at that load", "frames/s",
+                 tuple(r.frames_per_wall_second for r in runs),
+                 note=f"bus limit {last.bus_limit_fps:,.0f} frames/s ({last.mean_frame_bits:.1f} bits a frame "
+                      "with stuffing and intermission)")
+    return [rtf, fps]
+
+
+def _scaling(config: Config) -> list[Figure]:
+    figures = []
+    for nodes, load in ((7, 1.0), (14, 1.0), (28, 1.0), (7, 0.5), (7, 0.25)):
+        runs = [fullload.run(nodes, load, config.scaling_s) for _ in range(max(config.runs, 1))]
+        per_delivery = statistics.median(r.wall_s / max(r.frames * (r.nodes - 1), 1) for r in runs) * 1e6
+        figures.append(Figure(f"real-time factor: {nodes} nodes, {load:.0%} load", "sim s / wall s",
+                              tuple(r.real_time_factor for r in runs),
+                              note=f"load {runs[-1].bus_busy:.0%}; {per_delivery:.0f} us wall per frame received"))
+    return figures
+
+
+def _python_can(config: Config) -> list[Figure]:
+    kit, bare, ratios = [], [], []
+    for _ in range(max(config.runs, 1)):
+        kit.append(pythoncan.kit_fps(config.full_load_s))
+        bare.append(pythoncan.python_can_fps(config.python_can_frames))
+        ratios.append(kit[-1] / bare[-1])
+    return [Figure("full model / python-can virtual bus, 1 sender -> 6 receivers", "ratio", tuple(ratios),
+                   target=0.5, aim=1,
+                   note=f"kit {statistics.median(kit):,.0f} frames/s, python-can {statistics.median(bare):,.0f} frames/s")]
+
+
+def _busy_wait(config: Config) -> list[Figure]:
+    return [
+        Figure("busy-wait on CANIsRxReady(), a frame every 100 ms", "wall ms / sim s",
+               repeat(config.runs, lambda: busywait.wall_ms_per_simulated_second(True, config.busy_wait_s))),
+        Figure("busy-wait on CANIsRxReady(), no frames", "wall ms / sim s",
+               repeat(config.runs, lambda: busywait.wall_ms_per_simulated_second(False, config.busy_wait_s))),
+    ]
+
+
+def _grading(config: Config) -> list[Figure]:
+    one = "grade one submission (solutions of Ex1..Ex6)"
+    if grading.checks_available():
+        first = Figure(one, "wall s", repeat(config.runs, grading.one_submission_s), target=5, aim=1,
+                       lower_is_better=True, note="appsim.checks.check, in process")
+    else:
+        first = Figure(one, "wall s", note=f"{grading.NOT_YET}: appsim.checks is not in the repository")
+    return [first, Figure("grade a class of 30 with --jobs 2", "wall s",
+                          note=f"{grading.NOT_YET}: `appsim grade` (appsim/grade.py) is not in the repository")]
+
+
+def _linked(config: Config) -> list[Figure]:
+    spacing = linked.frame_spacing_ms(config.linked_s)
+    jitter = [abs(gap - linked.EX2_PERIOD_MS) for gap in spacing]
+    trips = linked.round_trips_ms(config.round_trips)
+    return [
+        Figure("linked: Ex2 frame spacing at a python-can peer", "wall ms", tuple(spacing),
+               note=f"nominal {linked.EX2_PERIOD_MS:g} ms (Timer1), {len(spacing)} gaps; virtual bus"),
+        Figure(f"linked: frame period jitter, abs(gap - {linked.EX2_PERIOD_MS:g} ms)", "wall ms", tuple(jitter)),
+        Figure("linked: RTR round trip peer -> master -> peer", "wall ms", tuple(trips),
+               note=f"{len(trips)} requests; WallClock slices of 1 ms"),
+    ]
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="a tiny configuration (seconds, not minutes)")
+    parser.add_argument("--runs", type=int, help="repetitions of each figure (default 3; --quick: 1)")
+    args = parser.parse_args(argv)
+    config = QUICK if args.quick else FULL
+    if args.runs is not None:
+        if args.runs < 1:
+            parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
+        config = Config(**{**config.__dict__, "runs": args.runs})
+    figures: list[Figure] = []
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _linked):
+        figures += part(config)
+    print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
+    print(table(figures))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,58 @@
+"""The benchmark suite runs in its tiny configuration and prints every row of its table (no timing asserted)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+KIT = Path(__file__).resolve().parent.parent
+ROWS = (
+    "real-time factor: 7 nodes, 1 Mbit/s, 100 % load",
+    "frames per wall second at that load",
+    "real-time factor: 14 nodes, 100% load",
+    "real-time factor: 28 nodes, 100% load",
+    "real-time factor: 7 nodes, 25% load",
+    "full model / python-can virtual bus, 1 sender -> 6 receivers",
+    "busy-wait on CANIsRxReady(), a frame every 100 ms",
+    "busy-wait on CANIsRxReady(), no frames",
+    "grade one submission (solutions of Ex1..Ex6)",
+    "grade a class of 30 with --jobs 2",
+    "linked: Ex2 frame spacing at a python-can peer",
+    "linked: RTR round trip peer -> master -> peer",
+)
+
+
+def bench(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "bench", *args], cwd=KIT, capture_output=True, text=True,
+                          timeout=300, check=False)
+
+
+def cells(line: str) -> list[str]:
+    return [cell.strip() for cell in line.strip().strip("|").split("|")]
+
+
+def test_quick_suite_prints_the_table_with_a_figure_or_a_reason_in_every_row():
+    result = bench("--quick")
+    assert result.returncode == 0, result.stderr
+    lines = [line for line in result.stdout.splitlines() if line.startswith("|")]
+    assert cells(lines[0])[:7] == ["measurement", "min", "median", "max", "unit", "target", "met"]
+    rows = {cells(line)[0]: cells(line) for line in lines[2:]}
+    assert set(ROWS) <= set(rows)
+    for name, row in rows.items():
+        low, mid, high, note = row[1], row[2], row[3], row[7]
+        if low == "-":
+            assert note.startswith("not available yet"), f"{name}: no number and no reason"
+        else:
+            assert float(low.replace(",", "")) <= float(mid.replace(",", "")) <= float(high.replace(",", ""))
+    rtf = rows["real-time factor: 7 nodes, 1 Mbit/s, 100 % load"]
+    assert rtf[5].startswith(">= 1") and rtf[6] in ("yes", "NO")
+    limit = rows["frames per wall second at that load"][7]
+    frames_per_s = float(limit.split("bus limit ")[1].split(" frames/s")[0].replace(",", ""))
+    # an 8-byte standard frame is 111 bits unstuffed and at most 135 stuffed, plus 3 bits of intermission
+    assert 1e6 / (135 + 3) <= frames_per_s <= 1e6 / (111 + 3)
+    assert "run(s) per figure, on " in result.stdout.splitlines()[0]
+
+
+def test_runs_below_one_is_refused_with_the_reason():
+    result = bench("--quick", "--runs", "0")
+    assert result.returncode != 0 and "--runs is how often each figure is measured, at least 1" in result.stderr
