@@ -112,7 +112,7 @@ class GLCD:
                     screen[y:y + font5x7.HEIGHT, x + dx] = (bits >> rows) & 1
         return screen
 
-    def picture(self, ax: "Axes | None" = None, *, scale: float = 4.0) -> "Figure":
+    def picture(self, ax: Axes | None = None, *, scale: float = 4.0) -> Figure:
         """Draw the module as it looks: dark pixels on the yellow-green backlight (grey-green when off)."""
         import matplotlib.pyplot as plt
         from matplotlib.patches import FancyBboxPatch
@@ -150,7 +150,7 @@ def _rgb(colour: str) -> tuple[float, float, float]:
     return tuple(int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5))    # type: ignore[return-value]
 
 
-_SCREENS: "weakref.WeakKeyDictionary[PIC18F8680, GLCD]" = weakref.WeakKeyDictionary()
+_SCREENS: weakref.WeakKeyDictionary[PIC18F8680, GLCD] = weakref.WeakKeyDictionary()
 
 
 def attach_glcd(mcu: PIC18F8680) -> GLCD:
@@ -226,4 +226,4 @@ def putcGLCD(character: int | str) -> None:
     _screen(0).write([code])
 
 
-__all__ = ["GLCD_Initial", "setcurGLCD", "putsGLCD", "putrsGLCD", "putcGLCD"]
+__all__ = ["GLCD_Initial", "putcGLCD", "putrsGLCD", "putsGLCD", "setcurGLCD"]

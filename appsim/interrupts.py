@@ -1,4 +1,4 @@
-"""PIR1, PIE1 and IPR1 of the PIC18F8680: the peripheral interrupt flags that Timer1, the USART and the A/D share.
+"""PIR1, PIE1 and IPR1 of the PIC18F8680: the peripheral interrupt flags that Timer1 and the USART share.
 
 Peripherals set latched flags (TMR1IF) or provide read-only status flags (TXIF, RCIF); firmware polls and clears.
 """
@@ -29,8 +29,9 @@ class PeripheralInterrupts:
     """PIR1/PIE1/IPR1 of one MCU, a Peripheral on its SFR bus.
 
     Reset values: PIR1 = 0x00, PIE1 = 0x00, IPR1 = 0xFF (all high priority), as the data sheet gives.
-    A latched flag (TMR1IF, ADIF, ...) is set by its peripheral through `set_flag` and stays set until
-    firmware writes 0 to it; firmware may also set it by writing 1, as on the chip. A status flag given
+    A latched flag (TMR1IF) is set by its peripheral through `set_flag` and stays set until firmware
+    writes 0 to it; firmware may also set it by writing 1, as on the chip. ADIF, SSPIF, CCP1IF, TMR2IF
+    and PSPIF are latched bits that no simulated peripheral sets (the A/D is polled through GO/DONE). A status flag given
     to `provide` (TXIF = TXREG empty, RCIF = receive FIFO not empty) follows the peripheral's state:
     it reads what the peripheral says and ignores writes.
 

@@ -206,6 +206,23 @@ def CloseTimer1() -> None:
 
 
 # What firmware sees (`from appsim.firmware import *`); the board side is Timer1 and attach_timer1.
-__all__ = ["OpenTimer1", "ReadTimer1", "WriteTimer1", "CloseTimer1", "TIMER_INT_ON", "TIMER_INT_OFF",
-           "T1_16BIT_RW", "T1_8BIT_RW", "T1_PS_1_1", "T1_PS_1_2", "T1_PS_1_4", "T1_PS_1_8",
-           "T1_OSC1EN_ON", "T1_OSC1EN_OFF", "T1_SYNC_EXT_ON", "T1_SYNC_EXT_OFF", "T1_SOURCE_EXT", "T1_SOURCE_INT"]
+__all__ = [
+    "T1_8BIT_RW",
+    "T1_16BIT_RW",
+    "T1_OSC1EN_OFF",
+    "T1_OSC1EN_ON",
+    "T1_PS_1_1",
+    "T1_PS_1_2",
+    "T1_PS_1_4",
+    "T1_PS_1_8",
+    "T1_SOURCE_EXT",
+    "T1_SOURCE_INT",
+    "T1_SYNC_EXT_OFF",
+    "T1_SYNC_EXT_ON",
+    "TIMER_INT_OFF",
+    "TIMER_INT_ON",
+    "CloseTimer1",
+    "OpenTimer1",
+    "ReadTimer1",
+    "WriteTimer1",
+]

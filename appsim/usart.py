@@ -8,7 +8,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import NamedTuple
 
-from appsim.dsw2 import CON9, USB, DSW2
+from appsim.dsw2 import CON9, DSW2, USB
 from appsim.interrupts import RCIF, TXIF, PeripheralInterrupts
 from appsim.mcu import CALL_CYCLES, PIC18F8680, current_mcu
 from appsim.sim import PS_PER_SECOND, Timer
@@ -55,7 +55,7 @@ class SerialEnd:
     DSW2 routed elsewhere, SPEN or CREN off, or the receiver blocked by an overrun are counted in `lost`.
     """
 
-    def __init__(self, usart: "USART", route: str, place: str, *, baud: int = PC_BAUD):
+    def __init__(self, usart: USART, route: str, place: str, *, baud: int = PC_BAUD):
         self.usart = usart
         self.route = route
         self.place = place
@@ -403,9 +403,29 @@ def CloseUSART() -> None:
     mcu.write_name("PIE1", mcu.read_name("PIE1") & 0b11001111)
 
 
-__all__ = ["OpenUSART", "WriteUSART", "putcUSART", "putsUSART", "putrsUSART", "BusyUSART", "DataRdyUSART",
-           "ReadUSART", "getcUSART", "CloseUSART",
-           "USART_TX_INT_ON", "USART_TX_INT_OFF", "USART_RX_INT_ON", "USART_RX_INT_OFF",
-           "USART_BRGH_HIGH", "USART_BRGH_LOW", "USART_CONT_RX", "USART_SINGLE_RX",
-           "USART_SYNC_MASTER", "USART_SYNC_SLAVE", "USART_NINE_BIT", "USART_EIGHT_BIT",
-           "USART_SYNCH_MODE", "USART_ASYNCH_MODE"]
+__all__ = [
+    "USART_ASYNCH_MODE",
+    "USART_BRGH_HIGH",
+    "USART_BRGH_LOW",
+    "USART_CONT_RX",
+    "USART_EIGHT_BIT",
+    "USART_NINE_BIT",
+    "USART_RX_INT_OFF",
+    "USART_RX_INT_ON",
+    "USART_SINGLE_RX",
+    "USART_SYNCH_MODE",
+    "USART_SYNC_MASTER",
+    "USART_SYNC_SLAVE",
+    "USART_TX_INT_OFF",
+    "USART_TX_INT_ON",
+    "BusyUSART",
+    "CloseUSART",
+    "DataRdyUSART",
+    "OpenUSART",
+    "ReadUSART",
+    "WriteUSART",
+    "getcUSART",
+    "putcUSART",
+    "putrsUSART",
+    "putsUSART",
+]

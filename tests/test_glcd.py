@@ -166,9 +166,9 @@ def test_picture_is_yellow_green_with_dark_pixels_when_on_and_grey_when_off(worl
 
     def colours(image: np.ndarray) -> set[tuple[int, ...]]:
         centre = image[image.shape[0] // 2 - 20:image.shape[0] // 2 + 20, image.shape[1] // 2 - 20:image.shape[1] // 2 + 20]
-        return {tuple(int(round(c * 255)) for c in pixel[:3]) for row in centre for pixel in row}
+        return {tuple(round(c * 255) for c in pixel[:3]) for row in centre for pixel in row}
 
     assert colours(off) == {(0x8E, 0x9A, 0x86)}
     assert colours(on) == {(0xB5, 0xD3, 0x34)}, "a blank middle of the screen shows the backlight"
     top = on[on.shape[0] // 2 - 100:on.shape[0] // 2 - 80]
-    assert {(0x1D, 0x2A, 0x10)} <= {tuple(int(round(c * 255)) for c in p[:3]) for row in top for p in row}
+    assert {(0x1D, 0x2A, 0x10)} <= {tuple(round(c * 255) for c in p[:3]) for row in top for p in row}

@@ -1,12 +1,12 @@
 """Timer1 and PIR1: the overflow flag the workshop polls, 16-bit read/write buffering, and C18's timers.h."""
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from appsim.board import APP023
 from appsim.firmware import (
-    PIE1bits,
-    PIR1bits,
     T1_8BIT_RW,
     T1_16BIT_RW,
     T1_OSC1EN_OFF,
@@ -19,10 +19,12 @@ from appsim.firmware import (
     T1_SYNC_EXT_OFF,
     TIMER_INT_OFF,
     TIMER_INT_ON,
-    T1CONbits,
     CloseTimer1,
     OpenTimer1,
+    PIE1bits,
+    PIR1bits,
     ReadTimer1,
+    T1CONbits,
     WriteTimer1,
 )
 from appsim.sim import PS_PER_SECOND
@@ -68,14 +70,14 @@ def test_classroom_setting_overflows_every_52_4288_ms(world, board):
     period = 65536 * 8 * PS_PER_SECOND // 10_000_000       # 65536 x 8 / 10 MHz
     assert period == 52_428_800_000
     assert len(seen) == 19                                   # 1 s / 52.4288 ms
-    assert {b - a for a, b in zip(seen, seen[1:])} == {period}
+    assert {b - a for a, b in itertools.pairwise(seen)} == {period}
     assert board.timer1.overflow_period_ps() == period
 
 
 @pytest.mark.parametrize(("prescale", "mask"), [(1, T1_PS_1_1), (2, T1_PS_1_2), (4, T1_PS_1_4), (8, T1_PS_1_8)])
 def test_prescaler_sets_the_overflow_period(world, board, prescale, mask):
     seen = overflow_times(world, board, TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & mask, 0.2)
-    assert {b - a for a, b in zip(seen, seen[1:])} == {65536 * prescale * TCY_PS}
+    assert {b - a for a, b in itertools.pairwise(seen)} == {65536 * prescale * TCY_PS}
 
 
 def test_open_timer1_sets_the_registers_as_c18_does(world, board):
@@ -90,7 +92,7 @@ def test_open_timer1_sets_the_registers_as_c18_does(world, board):
     board.run(main)
     world.run(0.001)
     # T1_SYNC_EXT_OFF leaves T1SYNC = 1 ("do not synchronise"); it only matters for an external clock.
-    assert fields == dict(RD16=1, T1CKPS=3, T1OSCEN=0, T1SYNC=1, TMR1CS=0, TMR1ON=1, TMR1IE=1, TMR1IF=0)
+    assert fields == {"RD16": 1, "T1CKPS": 3, "T1OSCEN": 0, "T1SYNC": 1, "TMR1CS": 0, "TMR1ON": 1, "TMR1IE": 1, "TMR1IF": 0}
 
 
 def test_read_timer1_counts_instruction_cycles_from_write_timer1(world, board):

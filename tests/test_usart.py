@@ -1,15 +1,13 @@
 """The USART at 19200 N 8 1 to the USB-CDC monitor or CON9 through DSW2, C18's usart.h, and DSW2 1 2 on PORTJ."""
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 
 import pytest
 
 from appsim.board import APP023
 from appsim.firmware import (
-    PIR1bits,
-    PORTJbits,
-    RCSTAbits,
     SFR,
     USART_ASYNCH_MODE,
     USART_BRGH_HIGH,
@@ -23,6 +21,9 @@ from appsim.firmware import (
     BusyUSART,
     DataRdyUSART,
     OpenUSART,
+    PIR1bits,
+    PORTJbits,
+    RCSTAbits,
     ReadUSART,
     WriteUSART,
     putrsUSART,
@@ -97,7 +98,7 @@ def test_putrsusart_hello_reaches_the_usb_monitor_one_frame_after_another(world)
     world.run(0.01)
     assert bytes(byte for byte, _ in usb) == b"hello\r\n\0", "C18's putrsUSART sends the terminating NUL too"
     assert con9 == []
-    gaps = [b - a for (_, a), (_, b) in zip(usb, usb[1:])]
+    gaps = [b - a for (_, a), (_, b) in itertools.pairwise(usb)]
     # C18's BusyUSART waits for TRMT (shift register empty): each frame (520 µs) plus the loop's few cycles.
     assert all(FRAME_PS <= gap < FRAME_PS + 2_000_000 for gap in gaps), gaps
     assert FRAME_PS == 520_000_000
@@ -114,7 +115,7 @@ def test_feeding_txreg_on_txif_sends_frames_back_to_back_every_520_us(world):
     _, usb, _ = board_running(world, main)
     world.run(0.01)
     assert bytes(byte for byte, _ in usb) == b"CAN"
-    assert [b - a for (_, a), (_, b) in zip(usb, usb[1:])] == [FRAME_PS, FRAME_PS]
+    assert [b - a for (_, a), (_, b) in itertools.pairwise(usb)] == [FRAME_PS, FRAME_PS]
 
 
 def test_txif_and_trmt_follow_txreg_and_the_shift_register(world):
