@@ -211,5 +211,5 @@ def error_counter_history(samples: Sequence[tuple[float, int, int]], ax: Axes | 
     ax.set_xlabel("time (ms)")
     ax.set_ylabel("error counter")
     ax.set_title(f"error counters{' of ' + node if node else ''}")
-    ax.legend(loc="center right")
+    ax.legend(loc="lower right")
     return _figure(ax)

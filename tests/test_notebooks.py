@@ -1,0 +1,85 @@
+"""The notebooks run top to bottom in a real Jupyter kernel with the solutions in place, and ship with the starters."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+from nbclient.exceptions import CellExecutionError
+
+KIT = Path(__file__).resolve().parent.parent
+NOTEBOOKS = KIT / "notebooks"
+ALL = sorted(path.stem for path in NOTEBOOKS.glob("*.ipynb"))
+EXERCISES = {"ex1": "ex1", "ex2": "ex2", "ex3": "ex3", "ex4": "ex4", "ex5": "ex5", "ex6": "ex6",
+             "demo1_monitor": "demo1"}
+CELL_TIMEOUT_S = 300
+SCORE = re.compile(r"(\d+)/(\d+)")
+
+
+def read(name: str) -> nbformat.NotebookNode:
+    return nbformat.read(NOTEBOOKS / f"{name}.ipynb", as_version=4)
+
+
+def tagged(notebook: nbformat.NotebookNode, tag: str) -> list[nbformat.NotebookNode]:
+    return [cell for cell in notebook.cells if tag in cell.metadata.get("tags", [])]
+
+
+def firmware_file(cell: nbformat.NotebookNode) -> tuple[str, str]:
+    """The file a firmware cell writes and the firmware in it (the cell's body below %%writefile)."""
+    first, _, body = cell.source.partition("\n")
+    magic, _, filename = first.partition(" ")
+    assert magic == "%%writefile", "the firmware cell starts with %%writefile <file>"
+    return filename, body
+
+
+def test_every_workshop_notebook_is_there():
+    assert set(ALL) == {"00_can_in_15_minutes", "01_bit_timing", *EXERCISES}
+
+
+@pytest.mark.parametrize("name", sorted(EXERCISES))
+def test_shipped_exercise_notebook_has_the_starter_in_its_firmware_cell_and_the_check(name):
+    notebook = read(name)
+    exercise = EXERCISES[name]
+    assert notebook.metadata["appsim"] == {"exercise": exercise}
+    [cell] = tagged(notebook, "firmware")
+    filename, body = firmware_file(cell)
+    assert filename == f"{name}.py"
+    assert body == (KIT / "exercises" / filename).read_text(), "the student starts from exercises/" + filename
+    [check_cell] = tagged(notebook, "check")
+    assert check_cell.source == f'check("{exercise}", "{filename}")'
+    assert not any(cell.get("outputs") for cell in notebook.cells if cell.cell_type == "code"), \
+        "notebooks ship without outputs"
+
+
+def execute(name: str, workdir: Path) -> nbformat.NotebookNode:
+    """Run a copy of the notebook in `workdir`, with the solution in its firmware cell; fail on any cell error."""
+    notebook = read(name)
+    for cell in tagged(notebook, "firmware"):
+        filename, _ = firmware_file(cell)
+        cell.source = f"%%writefile {filename}\n" + (KIT / "solutions" / filename).read_text()
+    client = NotebookClient(notebook, timeout=CELL_TIMEOUT_S, kernel_name="python3",
+                            resources={"metadata": {"path": str(workdir)}})
+    try:
+        client.execute()
+    except CellExecutionError as error:
+        pytest.fail(f"{name}.ipynb: a cell failed:\n{error}")
+    return notebook
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_notebook_runs_top_to_bottom_with_the_solutions_and_the_check_gives_full_marks(name, tmp_path):
+    notebook = execute(name, tmp_path)
+    errors = [output for cell in notebook.cells for output in cell.get("outputs", [])
+              if output.output_type == "error"]
+    assert not errors
+    for cell in tagged(notebook, "firmware"):
+        filename, body = firmware_file(cell)
+        assert (tmp_path / filename).read_text() == body, "%%writefile wrote the cell's firmware next to the notebook"
+    for cell in tagged(notebook, "check"):
+        [result] = [output for output in cell.outputs if output.output_type == "execute_result"]
+        shown = result.data["text/html"]
+        scored, out_of = map(int, SCORE.search(shown).groups())
+        assert out_of > 0 and scored == out_of, f"{name}: the solution should get full marks:\n{shown}"
+        assert "FAIL" not in shown
