@@ -62,6 +62,19 @@ _TX_ORDER = ("TXB2", "TXB1", "TXB0")     # on equal TXPRI the higher buffer numb
 _RXF_OF = {"RXB0": (0, 1), "RXB1": (2, 3, 4, 5)}
 _MASK_OF = {"RXB0": 0, "RXB1": 1}
 
+# What a CPU access to each address does, decided once from the register map rather than on every access.
+_PLAIN, _PROTECTED, _CANSTAT, _COMSTAT, _TXERRCNT, _RXERRCNT = range(6)
+_READ_KIND: dict[int, int] = {
+    r.address: (_PROTECTED if r.protected else _CANSTAT if r.name.startswith("CANSTAT")
+                else {"COMSTAT": _COMSTAT, "TXERRCNT": _TXERRCNT, "RXERRCNT": _RXERRCNT}.get(r.name, _PLAIN))
+    for r in R.REGISTERS}
+_WINDOW_SHIFT = tuple(R.BUFFER_BASE[R.WINDOW[win]] - R.WINDOW_FIRST for win in range(8))
+_TXREQ_LOCK = {r.address: R.BUFFER_BASE[r.name[:4]] - 0xF00 for r in R.REGISTERS   # TXBn data: CON index
+               if r.name[:3] == "TXB" and r.name[4:] != "CON"}
+_RESETS_ACCEPTANCE = frozenset(r.address for r in R.REGISTERS if r.protected or r.name in ("RXB0CON", "RXB1CON"))
+_SIDE_EFFECTS = frozenset(R.BY_NAME[n].address for n in ("CANCON", "TXB0CON", "TXB1CON", "TXB2CON", "RXB0CON",
+                                                        "ECANCON"))
+
 
 class ECAN:
     """One ECAN module. Registers are the truth; everything else is derived from them or is counters.
@@ -128,21 +141,20 @@ class ECAN:
     # ----------------------------------------------------------------- firmware side
     def read(self, address: int) -> int:
         """What the CPU reads at an SFR address (after the CANCON.WIN window)."""
-        address = self._windowed(address)
-        reg = R.BY_ADDRESS.get(address)
-        if reg is None:
+        if R.WINDOW_FIRST <= address <= R.WINDOW_LAST:
+            address += _WINDOW_SHIFT[(self._sfr[0x6F] & R.WIN_MASK) >> 1]
+        kind = _READ_KIND.get(address)
+        if kind == _PLAIN:
+            return self._sfr[address - 0xF00]
+        if kind is None:
             return 0
-        if reg.protected and self.opmode != Mode.CONFIGURATION:
-            return 0
-        if reg.name.startswith("CANSTAT"):
+        if kind == _PROTECTED:
+            return self._sfr[address - 0xF00] if self.opmode == Mode.CONFIGURATION else 0
+        if kind == _CANSTAT:
             return (self.opmode << 5) | (self._icode() << 1)
-        if reg.name == "COMSTAT":
+        if kind == _COMSTAT:
             return self._sfr[0x74] | self._status_bits()
-        if reg.name == "TXERRCNT":
-            return min(self.tec, 255)
-        if reg.name == "RXERRCNT":
-            return min(self.rec, 255)
-        return self._sfr[address - 0xF00]
+        return min(self.tec if kind == _TXERRCNT else self.rec, 255)
 
     def write(self, address: int, value: int) -> None:
         """What the CPU's write does, with the access rules of each bit and its side effects."""
@@ -155,21 +167,21 @@ class ECAN:
             return
         index = address - 0xF00
         old = self._sfr[index]
-        if reg.name[:3] == "TXB" and reg.name[4:] != "CON" and self._sfr[
-                R.BUFFER_BASE[reg.name[:4]] - 0xF00] & R.TXREQ:
+        lock = _TXREQ_LOCK.get(address)
+        if lock is not None and self._sfr[lock] & R.TXREQ:
             self.ignored_writes.append((reg.name, value & 0xFF))   # locked while TXREQ = 1
             return
         new = (old & ~reg.writable & 0xFF) | (value & reg.writable)
         new &= ~(reg.clear_only & ~value) & 0xFF
         self._sfr[index] = new
-        if reg.protected or reg.name in ("RXB0CON", "RXB1CON"):
+        if address in _RESETS_ACCEPTANCE:
             self._acceptance = None
-        self._after_write(reg.name, old, new)
+        if address in _SIDE_EFFECTS:
+            self._after_write(reg.name, old, new)
 
     def _windowed(self, address: int) -> int:
         if R.WINDOW_FIRST <= address <= R.WINDOW_LAST:
-            buffer = R.WINDOW[(self._sfr[0x6F] & R.WIN_MASK) >> 1]
-            return R.BUFFER_BASE[buffer] + address - R.WINDOW_FIRST
+            return address + _WINDOW_SHIFT[(self._sfr[0x6F] & R.WIN_MASK) >> 1]
         return address
 
     def _after_write(self, name: str, old: int, new: int) -> None:
