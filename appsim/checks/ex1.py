@@ -5,7 +5,15 @@ Nothing may appear on the bus; the own frame must pass RXB0's mask and filters (
 from __future__ import annotations
 
 from appsim.checks.judging import data_frames
-from appsim.checks.trial import Trial, decimal_values, hex_id, hex_values, listing, ms, took
+from appsim.checks.trial import (
+    Trial,
+    decimal_values,
+    hex_id,
+    hex_values,
+    listing,
+    ms,
+    took,
+)
 from appsim.checks.verdict import CheckResult
 
 OFF_BUS = "stays off the bus (Loopback mode)"

@@ -4,7 +4,12 @@ The classroom around it: the master, the PC monitor interface (it ACKs) and one 
 """
 from __future__ import annotations
 
-from appsim.checks.judging import data_frames, on_the_bus, once_per_overflow, sent_anywhere
+from appsim.checks.judging import (
+    data_frames,
+    on_the_bus,
+    once_per_overflow,
+    sent_anywhere,
+)
 from appsim.checks.trial import Trial, count, hex_id, took
 from appsim.checks.verdict import CheckResult
 

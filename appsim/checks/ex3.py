@@ -5,7 +5,15 @@ The master's potentiometer moves halfway through, so the LCD must follow every f
 from __future__ import annotations
 
 from appsim.checks.judging import data_frames, on_the_bus
-from appsim.checks.trial import MASTER_ID, Trial, count, decimal_values, hex_values, listing, took
+from appsim.checks.trial import (
+    MASTER_ID,
+    Trial,
+    count,
+    decimal_values,
+    hex_values,
+    listing,
+    took,
+)
 from appsim.checks.verdict import CheckResult
 
 RECEIVES = "RXB0 receives the master's 0x088"

@@ -66,9 +66,9 @@ def _filters(trial: Trial, mine) -> CheckResult:
     later = [e for e in trial.bus.frames() if e.start_ps >= joined and e.sender != trial.name]
     wrong = [e for e in later if took(trial.reception(e)) != (e.frame.can_id == MASTER_ID and not e.frame.remote)]
     if not wrong:
+        rejected = [e for e in later if not took(trial.reception(e))]
         return CheckResult(FILTERS, True, f"After joining only the master's 0x088 got in ({trial.acceptance('RXB0')}); "
-                                          f"{count(len(later) - len([e for e in later if took(trial.reception(e))]), 'other frame')} "
-                                          "rejected.")
+                                          f"{count(len(rejected), 'other frame')} rejected.")
     return CheckResult(FILTERS, False, f"After joining, the acceptance logic took {listing(wrong)} "
                                        f"({trial.reception(wrong[0])}): {trial.acceptance('RXB0')}. CANInitialize() "
                                        "sets the masks to 0 (accept everything) and CAN_CONFIG_ALL_MSG sets RXM = 11: "

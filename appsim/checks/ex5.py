@@ -4,8 +4,18 @@ the master's answer (a data frame with that ID) is received and its A/D shows on
 from __future__ import annotations
 
 from appsim.checks.judging import once_per_overflow, sent_anywhere, why_silent
-from appsim.checks.trial import (MASTER_ID, Trial, count, decimal_values, describe, hex_id, hex_values, ms,
-                                 payload, took)
+from appsim.checks.trial import (
+    MASTER_ID,
+    Trial,
+    count,
+    decimal_values,
+    describe,
+    hex_id,
+    hex_values,
+    ms,
+    payload,
+    took,
+)
 from appsim.checks.verdict import CheckResult
 
 REQUESTS = "sends RTR frames for RTR_ID with DLC 0"

@@ -3,7 +3,12 @@ IDs and data frames with the own ID are not. A test node of the check's own puts
 """
 from __future__ import annotations
 
-from appsim.an738 import (CAN_CONFIG_FLAGS, CAN_TX_MSG_FLAGS, CANInitialize, CANSendMessage)
+from appsim.an738 import (
+    CAN_CONFIG_FLAGS,
+    CAN_TX_MSG_FLAGS,
+    CANInitialize,
+    CANSendMessage,
+)
 from appsim.bus import BusEvent
 from appsim.checks.ex3 import master_frames
 from appsim.checks.judging import data_frames, why_silent
@@ -17,7 +22,7 @@ SILENT = "silent unless polled"
 DATA = "ignores data frames with its own ID"
 NAMES = (ANSWERS, RXB1, SILENT, DATA)
 SECONDS = 0.17                    # the test node's frames from 65 ms, the master's first poll at ~100 ms
-ANSWER_WITHIN_PS = 5 * MS         # read RXB1, read the A/D, CANSendMessage: well under a millisecond
+ANSWER_WITHIN_PS = 2 * MS         # read RXB1, read the A/D, CANSendMessage: well under a millisecond
 RTR_TEST = "the test RX_ID2 == MESSAGE_ID1 and CANMessageFlag & CAN_RX_RTR_FRAME"
 STANDARD, REMOTE = CAN_TX_MSG_FLAGS.CAN_TX_STD_FRAME, CAN_TX_MSG_FLAGS.CAN_TX_RTR_FRAME
 
@@ -118,7 +123,10 @@ def _silent(trial: Trial, unasked) -> CheckResult:
     if not wrong:
         return CheckResult(SILENT, True, "It sent nothing but answers to RTRs for its own ID.")
     sent, trigger = wrong[0]
-    if trigger is not None and trigger.frame.remote:
+    if trigger is not None and trigger.frame.remote and trigger.frame.can_id == trial.own_id:
+        why = (f"as a second frame after the one RTR for {hex_id(trial.own_id)} from {trigger.sender}: answer "
+               "each request once")
+    elif trigger is not None and trigger.frame.remote:
         why = (f"right after taking the RTR {hex_id(trigger.frame.can_id)} from {trigger.sender}, which asks for "
                f"another node's data: answer only if {RTR_TEST}")
     else:

@@ -89,8 +89,8 @@ def _load_error(error: FirmwareError, path: Path) -> str:
 
 def _student_frame(tb, filename: str | None) -> traceback.FrameSummary | None:
     frames = traceback.extract_tb(tb)
-    mine = [frame for frame in frames if filename and frame.filename == filename]
-    return (mine or frames or [None])[-1]
+    mine = [frame for frame in frames if filename and frame.filename == filename] or frames
+    return mine[-1] if mine else None
 
 
 def station_of(exercise: str, firmware: Firmware, message_id: int | None) -> int:
@@ -165,20 +165,34 @@ class Trial:
         self.potentiometers = values[:STATIONS]
         self.master_potentiometers = values[STATIONS:]
         self.bus = Bus(Simulator(), BIT_RATE)
-        self.room: Classroom | None = None
-        self.board: APP023 | None = None
+        self._room: Classroom | None = None
+        self._board: APP023 | None = None
+
+    @property
+    def room(self) -> Classroom:
+        if self._room is None:
+            raise RuntimeError("set the classroom up first: Trial.classroom(...)")
+        return self._room
+
+    @property
+    def board(self) -> APP023:
+        """The board running the student's firmware."""
+        if self._board is None:
+            raise RuntimeError("set the classroom up first: Trial.classroom(...)")
+        return self._board
 
     # -------------------------------------------------------------- setting up
     def classroom(self, exercise: int, stations: int, *, own_board: str | None = None) -> Classroom:
         """The master, the PC monitor interface and stations 1..n (n >= the student's), the student's firmware on
         its station's board; or, with `own_board`, on a board of its own by that name (Demo1's monitor)."""
         stations = max(stations, self.station)
-        self.room = Classroom(self.bus, exercise, stations=stations, potentiometers=self.potentiometers[:stations],
-                              master_potentiometer=self.master_potentiometers[0])
-        self.board = (self.room.station(self.station) if own_board is None
-                      else APP023(self.bus, own_board, potentiometer=self.potentiometers[-1]))
-        self.board.run(self.firmware.runnable)
-        return self.room
+        room = self._room = Classroom(self.bus, exercise, stations=stations,
+                                      potentiometers=self.potentiometers[:stations],
+                                      master_potentiometer=self.master_potentiometers[0])
+        board = self._board = (room.station(self.station) if own_board is None
+                               else APP023(self.bus, own_board, potentiometer=self.potentiometers[-1]))
+        board.run(self.firmware.runnable)
+        return room
 
     def node(self, name: str, main: Callable[[], object]) -> PIC18F8680:
         """A test node of the check's own (a PIC18F8680 at 125 kbit/s running `main`)."""
@@ -192,6 +206,7 @@ class Trial:
         sim = self.bus.sim
         sim.run(until=sim.now + round(seconds * PS_PER_SECOND))
         process = self.board.mcu.process
+        assert process is not None, "the student's firmware was started in Trial.classroom"
         if process.failure is not None:
             where = _student_frame(process.failure.__traceback__, self.firmware.filename)
             place = f" at line {where.lineno} of {Path(where.filename).name} (`{where.line}`)" if where else ""

@@ -1,0 +1,53 @@
+"""Typical mistake: EX5 without CAN_TX_RTR_FRAME: an empty data frame with RTR_ID, which the master does not answer.
+
+A copy of solutions/ex5.py with that one change."""
+from appsim.firmware import *
+
+RTR_ID = 0x81             # the ID this node requests: the one assigned to you, 0x81 .. 0x86
+RX_Filter0 = RTR_ID       # RXF0: the master's answer has the ID of the request
+RX_Mask0 = 0x7FF          # every ID bit is compared
+
+
+def CANInitialization(config, mode):
+    # 125 kbit/s at Fosc = 40 MHz: SJW 4, BRP 10, PHSEG1 8, PHSEG2 4, PROPSEG 3 (16 TQ, sample point 75 %)
+    CANInitialize(4, 10, 8, 4, 3, config)
+    CANSetOperationMode(CAN_OP_MODE_CONFIG)         # CANInitialize returns in NORMAL mode, masks at 0
+    CANSetMask(CAN_MASK_B1, RX_Mask0, CAN_CONFIG_STD_MSG)
+    CANSetMask(CAN_MASK_B2, RX_Mask0, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B1_F1, RX_Filter0, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B1_F2, RX_Filter0, CAN_CONFIG_STD_MSG)
+    CANSetOperationMode(mode)
+
+
+def main():
+    GLCD_Initial()
+    setcurGLCD(1, 1)
+    putrsGLCD("EX5 REMOTE REQUEST")
+    setcurGLCD(2, 1)
+    putsGLCD("TX ID  0x%03X RTR" % RTR_ID)
+    setcurGLCD(5, 1)
+    putrsGLCD("MODE LISTEN ONLY")
+    CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_LISTEN)       # 1, 2: hear everything, send nothing
+    RX_ID1 = 0
+    while RX_ID1 != 0x088:                                          # 3: wait for the master console
+        if CANIsRxReady():
+            RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+    CANSetOperationMode(CAN_OP_MODE_CONFIG)                         # 4
+    CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL)  # 5, 6: filters set again
+    setcurGLCD(5, 1)
+    putrsGLCD("MODE NORMAL     ")
+    # Fosc/4 with a 1:8 prescaler: TMR1 overflows every 65536 x 8 x 0.1 us = 52.4288 ms
+    OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_8 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)
+    while True:
+        if PIR1bits.TMR1IF:                         # TMR1_OVERFLOW
+            PIR1bits.TMR1IF = 0
+            CANSendMessage(RTR_ID, None, 0, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_NO_RTR_FRAME)
+        if CANIsRxReady():
+            RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            setcurGLCD(4, 1)
+            if CANMessageFlag & CAN_RX_RTR_FRAME:       # a remote frame asks for data and carries none
+                putsGLCD("RX ID  0x%03X RTR" % RX_ID1)
+            else:
+                putsGLCD("RX ID  0x%03X    " % RX_ID1)
+                setcurGLCD(3, 1)
+                putsGLCD("A/D    %4d" % ((RxData[3] << 8) | RxData[4]))

@@ -1,0 +1,72 @@
+"""Typical mistake: EX6 with RX_Mask1 = 0 (the software test is kept): RXB1 takes every frame RXB0 does not.
+
+A copy of solutions/ex6.py with that one change."""
+from appsim.firmware import *
+
+MESSAGE_ID1 = 0x100     # this node's transmit identifier: the one assigned to you, 0x100 .. 0x150
+RX_Filter0 = 0x088        # RXF0: the master console's ID
+RX_Mask0 = 0x7FF          # every ID bit is compared
+RX_Filter2 = MESSAGE_ID1  # RXF2..RXF5: RTR frames asking for this node's data
+RX_Mask1 = 0x000
+
+TxData = [0x01, 0x02, 0x03, 0x00, 0x00]
+
+
+def CANInitialization(config, mode):
+    # 125 kbit/s at Fosc = 40 MHz: SJW 4, BRP 10, PHSEG1 8, PHSEG2 4, PROPSEG 3 (16 TQ, sample point 75 %)
+    CANInitialize(4, 10, 8, 4, 3, config)
+    CANSetOperationMode(CAN_OP_MODE_CONFIG)         # CANInitialize returns in NORMAL mode, masks at 0
+    CANSetMask(CAN_MASK_B1, RX_Mask0, CAN_CONFIG_STD_MSG)
+    CANSetMask(CAN_MASK_B2, RX_Mask1, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B1_F1, RX_Filter0, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B1_F2, RX_Filter0, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B2_F1, RX_Filter2, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B2_F2, RX_Filter2, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B2_F3, RX_Filter2, CAN_CONFIG_STD_MSG)
+    CANSetFilter(CAN_FILTER_B2_F4, RX_Filter2, CAN_CONFIG_STD_MSG)
+    CANSetOperationMode(mode)
+
+
+def read_potentiometer():
+    ConvertADC()
+    while BusyADC():
+        pass
+    TxData[3] = SFR.ADRESH
+    TxData[4] = SFR.ADRESL
+
+
+def main():
+    OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_1ANA,
+            ADC_CH0 & ADC_INT_OFF & ADC_VREFPLUS_VDD & ADC_VREFMINUS_VSS)
+    GLCD_Initial()
+    setcurGLCD(1, 1)
+    putrsGLCD("EX6 ANSWER RTR")
+    setcurGLCD(2, 1)
+    putsGLCD("TX ID  0x%03X" % MESSAGE_ID1)
+    setcurGLCD(5, 1)
+    putrsGLCD("MODE LISTEN ONLY")
+    CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_LISTEN)       # hear everything, send nothing
+    RX_ID1 = 0
+    while RX_ID1 != 0x088:                                          # wait for the master console
+        if CANIsRxReady():
+            RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+    CANSetOperationMode(CAN_OP_MODE_CONFIG)
+    CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL)  # filters set again
+    setcurGLCD(5, 1)
+    putrsGLCD("MODE NORMAL     ")
+    while True:
+        if RXB0CONbits.RXFUL:                       # RXB0: the master's broadcast (RX_Filter0)
+            RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            setcurGLCD(3, 1)
+            putsGLCD("A/D    %4d" % ((RxData[3] << 8) | RxData[4]))
+            setcurGLCD(4, 1)
+            putsGLCD("RX ID  0x%03X" % RX_ID1)
+        elif RXB1CONbits.RXFUL:                     # RXB1: what RX_Filter2..5 let in under RX_Mask1
+            RX_ID2, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            if RX_ID2 == MESSAGE_ID1 and CANMessageFlag & CAN_RX_RTR_FRAME:
+                read_potentiometer()
+                CANSendMessage(MESSAGE_ID1, TxData, 5, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_NO_RTR_FRAME)
+                setcurGLCD(6, 1)
+                putsGLCD("RTR ID 0x%03X" % RX_ID2)
+                setcurGLCD(7, 1)
+                putsGLCD("SENT A/D %4d" % ((TxData[3] << 8) | TxData[4]))
