@@ -88,8 +88,10 @@ def _load_error(error: FirmwareError, path: Path) -> str:
 
 
 def _student_frame(tb, filename: str | None) -> traceback.FrameSummary | None:
-    frames = traceback.extract_tb(tb)
-    mine = [frame for frame in frames if filename and frame.filename == filename] or frames
+    """The last line of the student's own file in a traceback (none for code of the kit's, such as a proxy)."""
+    if filename is None or Path(filename).resolve().is_relative_to(KIT / "appsim"):
+        return None
+    mine = [frame for frame in traceback.extract_tb(tb) if frame.filename == filename]
     return mine[-1] if mine else None
 
 
