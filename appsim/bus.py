@@ -250,20 +250,25 @@ class Bus:
 
     # ------------------------------------------------------------------ what the ECAN asks for
     def mode_requested(self, ecan: ECAN) -> None:
+        """OPMODE follows REQOP after 11 consecutive recessive bits. A module that has been on the bus
+        counts the recessive bits that end every frame (ACK delimiter, EOF, intermission) or error frame
+        (delimiter, intermission): it switches when the bus goes idle. One coming from Configuration or
+        Disable mode starts counting at the request, at its own bit time."""
         port = self._by_ecan[id(ecan)]
-        if port.mode_timer is None:
-            self._change_mode_after_idle(port, max(self.sim.time(), self.busy_until))
-
-    def _change_mode_after_idle(self, port: _BoardPort, idle_from: int) -> None:
-        """The module counts 11 recessive bits (at its own bit time) before OPMODE follows REQOP."""
-        port.mode_timer = self.sim.call_at(idle_from + BUS_IDLE_BITS * self._node_bit_ps(port),
-                                           lambda: self._change_mode(port))
+        if port.mode_timer is not None:
+            return
+        now = self.sim.time()
+        if port.mode in (Mode.CONFIGURATION, Mode.DISABLE):
+            when = max(now, self.busy_until) + BUS_IDLE_BITS * self._node_bit_ps(port)
+        else:
+            when = max(now, self.busy_until)
+        port.mode_timer = self.sim.call_at(when, lambda: self._change_mode(port))
 
     def _change_mode(self, port: _BoardPort) -> None:
         """OPMODE follows REQOP once the bus is idle (a frame in progress is finished first)."""
         port.mode_timer = None
         if self.busy_until > self.sim.now:
-            self._change_mode_after_idle(port, self.busy_until)
+            port.mode_timer = self.sim.call_at(self.busy_until, lambda: self._change_mode(port))
             return
         port.ecan.enter_requested_mode()
         if port.ecan.opmode in (Mode.NORMAL, Mode.LISTEN_ONLY):

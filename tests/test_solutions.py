@@ -185,7 +185,7 @@ def test_ex6_ignores_data_frames_with_its_id_and_rtrs_for_other_ids(tmp_path):
     polls = [e for e in sent(room, "master", remote=True) if e.frame.can_id == 0x100]
     assert len(sent(room, "station6", remote=False)) >= 10
     assert len(station1) == len(polls) == 2
-    joined = next(e.end_ps for e in room.bus.frames() if e.frame.can_id == 0x088)   # listen-only until then
+    joined = next(e.start_ps for e in room.bus.frames() if "station2" in e.acked_by)   # in Normal mode from then
     rejected = [dict(e.received)["station2"] for e in sent(room, "station6", remote=True) if e.start_ps > joined]
     assert rejected and set(rejected) == {"rejected by the masks and filters"}
 
