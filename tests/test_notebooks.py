@@ -14,7 +14,7 @@ NOTEBOOKS = KIT / "notebooks"
 ALL = sorted(path.stem for path in NOTEBOOKS.glob("*.ipynb"))
 EXERCISES = {"ex1": "ex1", "ex2": "ex2", "ex3": "ex3", "ex4": "ex4", "ex5": "ex5", "ex6": "ex6",
              "demo1_monitor": "demo1"}
-CELL_TIMEOUT_S = 300
+CELL_TIMEOUT_S = 120                 # a cell takes under a second; a hang fails fast
 SCORE = re.compile(r"(\d+)/(\d+)")
 
 
