@@ -94,33 +94,39 @@ class Simulator:
     def _make_ready(self, process: "Process") -> None:
         heapq.heappush(self._ready, (process.local_time, next(self._order), process))
 
-    def _horizon(self) -> float:
-        """How far the process about to run may go before it must hand over."""
-        horizon = self.next_event_time()
-        if self._ready:
-            horizon = min(horizon, self._ready[0][0] + self.quantum_ps)
-        return horizon
-
     # -------------------------------------------------------------- the loop
     def run(self, until: int | None = None) -> None:
-        """Advance simulated time, to `until` (ps) or until nothing is left to happen."""
+        """Advance simulated time, to `until` (ps) or until nothing is left to happen.
+
+        Events and ready processes share one (time, order) sequence: `order` comes from one counter,
+        so comparing the heads of the two heaps as tuples never gets past it.
+        """
         events, ready = self._events, self._ready
+        heappop = heapq.heappop
+        last = float("inf") if until is None else until
+        scheduler = greenlet.getcurrent()
         while events or ready:
-            if ready and (not events or (ready[0][0], ready[0][1]) < (events[0][0], events[0][1])):
+            if ready and (not events or ready[0] < events[0]):
                 time = ready[0][0]
-                if until is not None and time > until:
+                if time > last:
                     break
-                _, _, process = heapq.heappop(ready)
+                process = heappop(ready)[2]
                 self.now = time
-                process.horizon = self._horizon()
+                # How far it may go before it must hand over: the next event, or the next process's quantum.
+                horizon = events[0][0] if events else float("inf")
+                if ready and ready[0][0] + self.quantum_ps < horizon:
+                    horizon = ready[0][0] + self.quantum_ps
+                process.horizon = horizon
                 self.running = process
-                process.resume()
+                if process.parent is not scheduler:
+                    process.parent = scheduler      # hand back to whoever runs the simulator
+                process.switch()
                 self.running = None
             else:
                 time = events[0][0]
-                if until is not None and time > until:
+                if time > last:
                     break
-                _, _, timer = heapq.heappop(events)
+                timer = heappop(events)[2]
                 if not timer.cancelled:
                     self.now = time
                     timer.callback()
@@ -159,10 +165,6 @@ class Process(greenlet.greenlet):
             self.failure_text = traceback.format_exc()
         finally:
             self.finished = True
-
-    def resume(self) -> None:
-        self.parent = greenlet.getcurrent()   # hand back to whoever runs the simulator
-        self.switch()
 
     def spend(self, time_ps: int) -> None:
         """Account for instructions executed; hand over if that passes the horizon."""
