@@ -82,7 +82,7 @@ def _grading(config: Config) -> list[Figure]:
     else:
         first = Figure(one, "wall s", note=f"{grading.NOT_YET}: appsim.checks is not in the repository")
     return [first, Figure("grade a class of 30 with --jobs 2", "wall s",
-                          note=f"{grading.NOT_YET}: `appsim grade` (appsim/grade.py) is not in the repository")]
+                          note=f"{grading.NOT_YET}: the `appsim grade --jobs` command is not in the CLI")]
 
 
 def _linked(config: Config) -> list[Figure]:

@@ -16,10 +16,6 @@ def checks_available() -> bool:
     return importlib.util.find_spec("appsim.checks") is not None
 
 
-def grader_available() -> bool:
-    return importlib.util.find_spec("appsim.grade") is not None
-
-
 def one_submission_s(seed: int = 1) -> float:
     """Wall seconds to check the solutions of Ex1..Ex6 as one student's submission (every check must pass)."""
     from appsim.checks import check
