@@ -275,6 +275,22 @@ def cmd_bittiming(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_grade(args: argparse.Namespace) -> int:
+    from appsim.grade import GradeError, run
+    from appsim.sandbox import Limits
+    try:
+        run(args.paths, results=args.json, csv_path=args.csv, gradescope_path=args.gradescope, jobs=args.jobs,
+            seed=args.seed, limits=Limits(time_s=args.time_limit, stall_s=min(10.0, args.time_limit)))
+    except GradeError as error:
+        print(f"appsim grade: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"\nappsim grade: interrupted; what was graded is in {args.json}: run the same command again to "
+              "resume without regrading it", file=sys.stderr)
+        return 130
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="appsim",
@@ -348,6 +364,24 @@ def build_parser() -> argparse.ArgumentParser:
     timing.add_argument("--fosc", type=int, default=40_000_000, help="oscillator frequency in Hz (default 40 MHz)")
     timing.add_argument("--top", type=int, default=10, help="how many settings to list (default 10)")
     timing.set_defaults(handler=cmd_bittiming)
+
+    grade = commands.add_parser(
+        "grade", help="grade a class: every submission's exercises, each firmware in a sandboxed process",
+        description="Grade submissions: PATH is a directory holding ex1.py .. ex6.py, demo1_monitor.py (or "
+                    "notebooks whose firmware cell is tagged `firmware`), a directory of those, or a .zip. "
+                    "Each record is appended to --json as it is graded; the same command again resumes. "
+                    "See docs/grading.md.")
+    grade.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="submissions, classes or zips")
+    grade.add_argument("--json", type=Path, default=Path("appsim-grades.jsonl"),
+                       help="JSON-lines results, one record per submission (default ./appsim-grades.jsonl)")
+    grade.add_argument("--csv", type=Path, help="write the gradebook: a row per submission, a column per exercise")
+    grade.add_argument("--gradescope", type=Path,
+                       help="Gradescope results.json (one submission), else a directory of NAME.json")
+    grade.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: the cores)")
+    grade.add_argument("--seed", type=int, help="seed of the random inputs (default: drawn, printed, recorded)")
+    grade.add_argument("--time-limit", type=_seconds, default=60.0,
+                       help="wall-clock seconds per exercise (default 60; 10 s without a register access stops it)")
+    grade.set_defaults(handler=cmd_grade)
     return parser
 
 
