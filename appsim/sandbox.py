@@ -28,7 +28,6 @@ import shutil
 import signal
 import socket
 import struct
-import subprocess
 import sys
 import tempfile
 import time
@@ -82,6 +81,8 @@ class Sandbox:
     """The fork server of one grader process: `RemoteFirmware(sandbox, path)` runs a file's main() in a child."""
 
     def __init__(self) -> None:
+        import subprocess       # here, not at the top: the fork server must not have it (see _AuditPolicy)
+
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         command = [sys.executable, "-c", "from appsim.sandbox import fork_server; fork_server()", str(theirs.fileno())]
         self.network_namespace = os.geteuid() == 0 and _can_unshare_network()
@@ -114,12 +115,8 @@ class Sandbox:
         return self._request({"op": "wait", "pid": pid})["status"]
 
     def close(self) -> None:
-        self._control.close()
-        try:
-            self._process.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            self._process.kill()
-            self._process.wait()
+        self._control.close()       # the fork server's end closes: it exits
+        self._process.wait()
 
     def __enter__(self) -> "Sandbox":
         return self
@@ -129,6 +126,8 @@ class Sandbox:
 
 
 def _can_unshare_network() -> bool:
+    import subprocess
+
     if shutil.which("unshare") is None:
         return False
     return subprocess.run(["unshare", "--net", "true"], capture_output=True).returncode == 0
@@ -354,13 +353,16 @@ def fork_server() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is for the grader, which ends everything
     sys.modules.setdefault("numpy", _Unavailable("numpy"))   # the GLCD imports it for pictures only
     import appsim.firmware  # noqa: F401  (the library every child uses, imported once)
+    import appsim.frame  # noqa: F401  (and the kit's modules firmware may use: Demo1's SLCAN)
     import appsim.loader  # noqa: F401
+    import appsim.slcan  # noqa: F401
     from appsim.board import APP023
     from appsim.bus import Bus
     from appsim.sim import Simulator
 
     addresses = dict(APP023(Bus(Simulator(), 125_000)).mcu.sfr_addresses)
-    for name in ("ctypes", "_ctypes"):        # nothing in the library needs them; the audit hook refuses them
+    nobody = os.geteuid() == 0 and all(_readable_by_all(Path(p)) for p in (sys.prefix, appsim.firmware.__file__))
+    for name in ("ctypes", "_ctypes", "subprocess", "_posixsubprocess"):    # the audit hook refuses them again
         sys.modules.pop(name, None)
     control.send(b"ready")
     while True:
@@ -376,7 +378,7 @@ def fork_server() -> None:
             if pid == 0:
                 try:
                     control.close()
-                    _child(fds[0], request, addresses)
+                    _child(fds[0], request, addresses, nobody)
                 finally:
                     os._exit(0)
             os.close(fds[0])
@@ -502,8 +504,16 @@ def _receive_all(fd: int) -> bytes:
     return exactly(length)
 
 
-def _child(fd: int, request: dict[str, Any], addresses: dict[str, int]) -> None:
-    """Set the child up, load the firmware and run its main() (never returns: the caller exits)."""
+def _readable_by_all(path: Path) -> bool:
+    """Whether user nobody could read `path` (every directory above it searchable by others)."""
+    return all(os.stat(directory).st_mode & 0o001 for directory in path.resolve().parents)
+
+
+def _child(fd: int, request: dict[str, Any], addresses: dict[str, int], nobody: bool) -> None:
+    """Set the child up, load the firmware and run its main() (never returns: the caller exits).
+
+    `nobody`: become user nobody (when root, and the Python installation and the kit are readable by all).
+    """
     import resource
 
     from appsim import glcd
@@ -517,7 +527,7 @@ def _child(fd: int, request: dict[str, Any], addresses: dict[str, int]) -> None:
     os.close(null)
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)       # a file too big fails with an error instead
     os.chdir(directory)
-    if os.geteuid() == 0:
+    if nobody:
         os.chown(directory, NOBODY, NOBODY)
         os.setgroups([])
         os.setgid(NOBODY)
