@@ -14,6 +14,8 @@ from typing import Any
 
 import greenlet
 
+from appsim.watchdog import watchdog
+
 PS_PER_SECOND = 10**12
 
 
@@ -98,9 +100,14 @@ class Simulator:
     def run(self, until: int | None = None) -> None:
         """Advance simulated time, to `until` (ps) or until nothing is left to happen.
 
-        Events and ready processes share one (time, order) sequence: `order` comes from one counter,
-        so comparing the heads of the two heaps as tuples never gets past it.
+        A firmware stuck in a loop that touches no register is stopped by the watchdog (`FirmwareHung`).
         """
+        with watchdog(self):
+            self._run(until)
+
+    def _run(self, until: int | None) -> None:
+        """Events and ready processes share one (time, order) sequence: `order` comes from one counter,
+        so comparing the heads of the two heaps as tuples never gets past it."""
         events, ready = self._events, self._ready
         heappop = heapq.heappop
         last = float("inf") if until is None else until
@@ -160,7 +167,7 @@ class Process(greenlet.greenlet):
             self.main()
         except greenlet.GreenletExit:
             raise
-        except Exception as failure:  # a firmware crash stops this board, not the simulation
+        except (Exception, SystemExit) as failure:  # a crash or sys.exit() stops this board, not the simulation
             self.failure = failure
             self.failure_text = traceback.format_exc()
         finally:
