@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from appsim.sandbox import Limits, RemoteFirmware, Sandbox
+from appsim.sandbox import DEFAULT_LIMITS, Limits, RemoteFirmware, Sandbox
 
 EXERCISE_FILES: dict[str, str] = {**{f"ex{n}": f"ex{n}.py" for n in range(1, 7)}, "demo1": "demo1_monitor.py"}
 DEFAULT_RESULTS = Path("appsim-grades.jsonl")
@@ -176,7 +176,7 @@ def firmware_from_notebook(path: Path) -> str:
 
 # ====================================================================== grading one submission
 
-def grade_submission(submission: Submission, seed: int, sandbox: Sandbox, limits: Limits = Limits()) -> dict[str, Any]:
+def grade_submission(submission: Submission, seed: int, sandbox: Sandbox, limits: Limits = DEFAULT_LIMITS) -> dict[str, Any]:
     """Every exercise of `submission` checked with its firmware in `sandbox`: the submission's record."""
     exercises = {exercise: _grade_exercise(exercise, submission, seed, sandbox, limits)
                  for exercise in EXERCISE_FILES}
@@ -299,7 +299,7 @@ def _graded(submissions: Sequence[Submission], seed: int, limits: Limits, jobs: 
     def give(process: subprocess.Popen) -> None:
         assert process.stdin is not None
         if not waiting:
-            selector.unregister(process.stdout)
+            selector.unregister(process.stdout)     # type: ignore[arg-type]
             process.stdin.close()
             return
         submission = waiting.popleft()
@@ -312,7 +312,7 @@ def _graded(submissions: Sequence[Submission], seed: int, limits: Limits, jobs: 
 
     try:
         for process in workers:
-            selector.register(process.stdout, selectors.EVENT_READ, process)
+            selector.register(process.stdout, selectors.EVENT_READ, process)    # type: ignore[arg-type]
             give(process)
         while busy:
             for key, _ in selector.select():
@@ -367,8 +367,7 @@ def write_results(path: Path, records: Iterable[dict[str, Any]]) -> None:
     """All records, sorted by submission, replacing `path` in one step."""
     temporary = path.with_name(path.name + ".tmp")
     with open(temporary, "w", encoding="utf-8") as file:
-        for record in sorted(records, key=lambda r: r["submission"]):
-            file.write(json.dumps(record, sort_keys=True) + "\n")
+        file.writelines(json.dumps(record, sort_keys=True) + "\n" for record in sorted(records, key=lambda r: r["submission"]))
         file.flush()
         os.fsync(file.fileno())
     os.replace(temporary, path)
@@ -420,7 +419,7 @@ def summary_line(record: dict[str, Any]) -> str:
 
 def run(paths: Sequence[str | Path], *, results: Path = DEFAULT_RESULTS, csv_path: Path | None = None,
         gradescope_path: Path | None = None, jobs: int | None = None, seed: int | None = None,
-        limits: Limits = Limits(), out: TextIO = sys.stdout) -> list[dict[str, Any]]:
+        limits: Limits = DEFAULT_LIMITS, out: TextIO = sys.stdout) -> list[dict[str, Any]]:
     """Grade the submissions under `paths`, resuming from `results`; the records of these submissions, by name."""
     import tempfile
 

@@ -48,7 +48,7 @@ class PIC18F8680:
         self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
         self.version = 0
         self._seen: dict[int, int] = {}
-        self._stale_sites: set[tuple[int, tuple]] = set()   # (address, firmware location) polled at `version`
+        self._stale_sites: set[tuple[int, object]] = set()  # (address, firmware location) polled at `version`
         self._stale_version = -1
         self.time_varying: set[int] = set()
         self.process: Process | None = None

@@ -1,22 +1,8 @@
 """One submission's firmware in its own OS process: each register access crosses a socket to the simulated board.
 
-The simulation (clock, bus, boards, checks) stays in the grader; the child holds only the student's module and
-the firmware library it calls (AN738, C18 helpers), as a C build links them into the firmware. Whatever the
-child does to itself only changes what its firmware does on the board, which is what is graded.
-
-A fork server started once per grader process (a fresh interpreter with the firmware library imported and
-nothing of the grader's) forks one child per run. The child, before any student code runs: its stdout and
-stderr go nowhere, its working directory is a fresh temporary directory holding only its firmware file, as
-root it becomes user nobody, it gets limits on address space, CPU time, processes, file size and open files,
-and an audit hook refuses processes, signals, sockets, ctypes and files outside that directory (reading the
-Python installation and the kit's own package is allowed, for imports). As root the fork server runs in a
-network namespace of its own (`unshare --net`), so the child has no network at all.
-
-Wire format (little-endian, each message a 4-byte length then its bytes). Child to grader, a batch of
-operations: `W` address:u16 value:u8 (write), `S` cycles:u64 (spend), then at most one that waits for an
-answer: `R` address:u16 site:i64 (read), `G` JSON [function, args] (a GLCD call); or alone: `L` (loaded),
-`E` (main returned), `X` text (exception), `M` (memory), `P` text (refused by the sandbox).
-Grader to child: `V` value:u8, `K` (GLCD call done), `F` JSON [exception type, message].
+The simulation and the checks stay in the grader; the child holds only the student's module and the firmware
+library it calls (AN738, C18 helpers), as a C build links them in. What the child does to itself only changes
+what its firmware does on the board, which is what is graded. What the child may do: see `_child`, docs/grading.md.
 """
 from __future__ import annotations
 
@@ -35,11 +21,16 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, ClassVar
 
 from appsim.mcu import PIC18F8680, current_mcu
 
 NOBODY = 65534
+# Wire format (little-endian; a message is a u32 length, then its bytes). Child to grader: a batch of `W`
+# address:u16 value:u8 (write) and `S` cycles:u64 (spend), ended by at most one access that waits for its
+# answer, `R` address:u16 site:i64 (read) or `G` JSON [function, args] (a GLCD call); or, alone, `L` (loaded),
+# `E` (main returned), `X` text (exception), `M` (out of memory), `P` text (refused by the sandbox).
+# Grader to child: `V` value:u8, `K` (GLCD call done), `F` JSON [exception type, message].
 _LENGTH = struct.Struct("<I")
 _WRITE = struct.Struct("<cHB")
 _SPEND = struct.Struct("<cQ")
@@ -63,6 +54,9 @@ class Limits:
             raise ValueError(f"sandbox limits are positive numbers; got {self}")
 
 
+DEFAULT_LIMITS = Limits()
+
+
 @dataclass(frozen=True)
 class Fault:
     """Why a firmware run earns nothing: `kind` is one word (exception, exited, stalled, ...), `message` explains."""
@@ -81,7 +75,7 @@ class Sandbox:
     """The fork server of one grader process: `RemoteFirmware(sandbox, path)` runs a file's main() in a child."""
 
     def __init__(self) -> None:
-        import subprocess       # here, not at the top: the fork server must not have it (see _AuditPolicy)
+        import subprocess  # here, not at the top: the fork server must not have it (see _AuditPolicy)
 
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         command = [sys.executable, "-c", "from appsim.sandbox import fork_server; fork_server()", str(theirs.fileno())]
@@ -118,7 +112,7 @@ class Sandbox:
         self._control.close()       # the fork server's end closes: it exits
         self._process.wait()
 
-    def __enter__(self) -> "Sandbox":
+    def __enter__(self) -> Sandbox:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -130,7 +124,7 @@ def _can_unshare_network() -> bool:
 
     if shutil.which("unshare") is None:
         return False
-    return subprocess.run(["unshare", "--net", "true"], capture_output=True).returncode == 0
+    return subprocess.run(["unshare", "--net", "true"], capture_output=True, check=False).returncode == 0
 
 
 class RemoteFirmware:
@@ -140,7 +134,7 @@ class RemoteFirmware:
     `fault`; the run then ends as a crash would. The wall-time limit counts from construction, over all runs.
     """
 
-    def __init__(self, sandbox: Sandbox, firmware: str | Path, limits: Limits = Limits()):
+    def __init__(self, sandbox: Sandbox, firmware: str | Path, limits: Limits = DEFAULT_LIMITS):
         self.sandbox = sandbox
         self.firmware = Path(firmware)
         self.limits = limits
@@ -184,7 +178,7 @@ class RemoteFirmware:
         _kill(pid)
         return self.sandbox.wait(pid)
 
-    def _serve(self, mcu: PIC18F8680, channel: "_Channel") -> Fault | None:
+    def _serve(self, mcu: PIC18F8680, channel: _Channel) -> Fault | None:
         """Perform the child's accesses on `mcu` until it ends; the fault that ended it (None: its end closed)."""
         loaded = False
         while True:
@@ -352,10 +346,10 @@ def fork_server() -> None:
     control = socket.socket(fileno=int(sys.argv[1]))
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is for the grader, which ends everything
     sys.modules.setdefault("numpy", _Unavailable("numpy"))   # the GLCD imports it for pictures only
-    import appsim.firmware  # noqa: F401  (the library every child uses, imported once)
-    import appsim.frame  # noqa: F401  (and the kit's modules firmware may use: Demo1's SLCAN)
-    import appsim.loader  # noqa: F401
-    import appsim.slcan  # noqa: F401
+    import appsim.firmware
+    import appsim.frame
+    import appsim.loader
+    import appsim.slcan
     from appsim.board import APP023
     from appsim.bus import Bus
     from appsim.sim import Simulator
@@ -473,7 +467,7 @@ def _address(address: int) -> int:
 
 def _call_site() -> int:
     """Where in the firmware (outside the kit) this access comes from, as one number (see PIC18F8680.read)."""
-    frame = sys._getframe(2)
+    frame: Any = sys._getframe(2)
     location = []
     while frame is not None:
         if not frame.f_globals.get("__name__", "").startswith("appsim."):
@@ -512,7 +506,12 @@ def _readable_by_all(path: Path) -> bool:
 def _child(fd: int, request: dict[str, Any], addresses: dict[str, int], nobody: bool) -> None:
     """Set the child up, load the firmware and run its main() (never returns: the caller exits).
 
-    `nobody`: become user nobody (when root, and the Python installation and the kit are readable by all).
+    Before any student code runs: stdout and stderr go nowhere; the working directory is a fresh temporary
+    directory holding only the firmware file; with `nobody` (as root, when the Python installation and the kit
+    are readable by all) it becomes user nobody; limits on address space, CPU time, processes, file size and
+    open files; the library reaches the board through `_RemoteMCU`; and `_AuditPolicy` refuses processes,
+    signals, sockets, ctypes and files outside that directory. As root, the fork server (and so the child) is
+    in a network namespace of its own (`unshare --net`): no network at all.
     """
     import resource
 
@@ -589,7 +588,7 @@ def _student_traceback(error: BaseException, firmware: Path) -> str:
 class _AuditPolicy:
     """The audit hook of a child: what firmware may not do, refused and reported to the grader."""
 
-    REFUSED = {
+    REFUSED: ClassVar[dict[str, str]] = {
         "os.fork": "starting a process (os.fork)", "os.forkpty": "starting a process (os.forkpty)",
         "os.posix_spawn": "starting a process (os.posix_spawn)", "os.spawn": "starting a process (os.spawn*)",
         "os.exec": "running a program (os.exec*)", "os.system": "running a command (os.system)",
@@ -598,9 +597,9 @@ class _AuditPolicy:
         "socket.__new__": "opening a socket (network)", "resource.setrlimit": "changing its limits",
         "resource.prlimit": "changing its limits", "os.chroot": "changing its root directory",
     }
-    REFUSED_MODULES = {"ctypes", "_ctypes", "_posixsubprocess", "cffi", "_cffi_backend"}
+    REFUSED_MODULES: ClassVar[set[str]] = {"ctypes", "_ctypes", "_posixsubprocess", "cffi", "_cffi_backend"}
     # event -> positions of its path arguments, and whether it changes the file system
-    PATHS = {"os.listdir": ((0,), False), "os.scandir": ((0,), False), "os.chdir": ((0,), False),
+    PATHS: ClassVar[dict[str, tuple[tuple[int, ...], bool]]] = {"os.listdir": ((0,), False), "os.scandir": ((0,), False), "os.chdir": ((0,), False),
              "os.remove": ((0,), True), "os.rmdir": ((0,), True), "os.mkdir": ((0,), True),
              "os.rename": ((0, 1), True), "os.link": ((0, 1), True), "os.symlink": ((0, 1), True),
              "os.chmod": ((0,), True), "os.chown": ((0,), True), "os.truncate": ((0,), True),
@@ -609,8 +608,9 @@ class _AuditPolicy:
     _WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
 
     def __init__(self, mcu: _RemoteMCU, directory: Path):
-        import appsim
         import site
+
+        import appsim
         self.mcu = mcu
         self.directory = str(directory)
         roots = {sys.prefix, sys.base_prefix, sys.exec_prefix, *site.getsitepackages(),

@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -52,7 +52,8 @@ def build_class(root: Path, hidden: Path) -> dict[str, dict[str, str]]:
         "gina": {"ex1": firmware("while True:\n    pass"), "ex2": solution("ex2")},
         "hank": {"ex1": firmware("hoard = []\nwhile True:\n    hoard.append(bytearray(1 << 20))")},
         "ivan": {"ex1": firmware("import os\nos.fork()\nwhile True:\n    CANIsRxReady()"),
-                 "ex2": firmware("import subprocess\nsubprocess.run(['true'])")},
+                 "ex2": firmware("import subprocess\nsubprocess.run(['true'])"),
+                 "ex3": firmware("import socket\nsocket.create_connection(('127.0.0.1', 80))")},
         "judy": {"ex1": firmware(f"print(open({str(hidden)!r}).read())"),
                  "ex2": firmware(f"open({str(hidden.with_name('gradebook.csv'))!r}, 'w').write('judy,100')"),
                  "ex3": solution("ex3").replace("def main():", "def main():\n    open('notes.txt', 'w').write('mine')")},
@@ -80,7 +81,7 @@ def graded(tmp_path_factory):
     build_class(base / "class", hidden)
     results = base / "grades.jsonl"
     records = run([base / "class"], results=results, csv_path=base / "gradebook.csv",
-                  gradescope_path=base / "gradescope", jobs=2, seed=SEED, limits=LIMITS, out=open(os.devnull, "w"))
+                  gradescope_path=base / "gradescope", jobs=2, seed=SEED, limits=LIMITS, out=io.StringIO())
     return base, {record["submission"]: record for record in records}, results
 
 
@@ -128,6 +129,7 @@ def test_monkeypatching_the_checks_and_printing_fake_results_change_nothing(grad
     ("hank", "ex1", "memory", "memory limit"),
     ("ivan", "ex1", "forbidden", "os.fork"),
     ("ivan", "ex2", "forbidden", "_posixsubprocess"),
+    ("ivan", "ex3", "forbidden", "socket"),
     ("judy", "ex1", "forbidden", "reading"),
     ("judy", "ex2", "forbidden", "writing"),
 ])
@@ -173,7 +175,7 @@ def test_a_zipped_notebook_is_graded_by_its_firmware_cell(graded):
 def test_the_same_class_and_seed_give_identical_json(graded, tmp_path):
     base, _, results = graded
     again = tmp_path / "again.jsonl"
-    run([base / "class"], results=again, jobs=2, seed=SEED, limits=LIMITS, out=open(os.devnull, "w"))
+    run([base / "class"], results=again, jobs=2, seed=SEED, limits=LIMITS, out=io.StringIO())
     assert again.read_text() == results.read_text()
 
 
@@ -213,7 +215,7 @@ def test_an_interrupted_run_resumes_without_regrading_and_ends_with_the_same_gra
     first.wait()
     kept = [json.loads(line)["submission"] for line in results.read_text().splitlines()]
     assert 1 <= len(kept) < len(names)
-    refused = subprocess.run([*command[:-4], "--seed", str(SEED + 1)], capture_output=True, text=True)
+    refused = subprocess.run([*command[:-4], "--seed", str(SEED + 1)], capture_output=True, text=True, check=False)
     assert refused.returncode == 2 and f"seed {SEED}" in refused.stderr
     second = subprocess.run(command, capture_output=True, text=True, check=True)
     assert f"{len(kept)} already graded there, not regraded" in second.stdout
