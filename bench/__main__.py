@@ -22,12 +22,13 @@ class Config:
     busy_wait_s: float
     linked_s: float             # wall seconds of the Ex2 board linked in real time
     round_trips: int
+    class_size: int             # submissions graded by `appsim grade --jobs 2`
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
-              linked_s=1.5, round_trips=10)
+              linked_s=1.5, round_trips=10, class_size=30)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
-               linked_s=0.2, round_trips=2)
+               linked_s=0.2, round_trips=2, class_size=2)
 
 
 def _full_load(config: Config) -> list[Figure]:
@@ -81,8 +82,13 @@ def _grading(config: Config) -> list[Figure]:
                        lower_is_better=True, note="appsim.checks.check, in process")
     else:
         first = Figure(one, "wall s", note=f"{grading.NOT_YET}: appsim.checks is not in the repository")
-    return [first, Figure("grade a class of 30 with --jobs 2", "wall s",
-                          note=f"{grading.NOT_YET}: the `appsim grade --jobs` command is not in the CLI")]
+    sandboxed = Figure("appsim grade: one submission (Ex1..Ex6), sandboxed", "wall s",
+                       repeat(config.runs, lambda: grading.appsim_grade_s(1, jobs=1)), target=5, aim=1,
+                       lower_is_better=True, note="the whole command, Python start included")
+    room = Figure(f"appsim grade: a class of {config.class_size} with --jobs 2", "wall s",
+                  repeat(config.runs, lambda: grading.appsim_grade_s(config.class_size, jobs=2)),
+                  note="the whole command")
+    return [first, sandboxed, room]
 
 
 def _linked(config: Config) -> list[Figure]:

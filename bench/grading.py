@@ -1,11 +1,15 @@
-"""Grading throughput: wall time to grade the solutions of Ex1..Ex6 with `appsim.checks.check`, and a class.
-
-Rows the kit cannot measure yet (the checks or `appsim grade` missing) say so instead of a number.
+"""Grading throughput: wall time to grade the solutions of Ex1..Ex6 with `appsim.checks.check` in process,
+and with `appsim grade` (each submission's firmware sandboxed in its own process): one submission, a class.
 """
 from __future__ import annotations
 
 import importlib.util
+import shutil
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 from appsim.classroom import EXERCISES, SOLUTIONS
 
@@ -26,3 +30,19 @@ def one_submission_s(seed: int = 1) -> float:
     if failed:
         raise RuntimeError(f"the solutions failed their own checks: {failed}")
     return wall
+
+
+def appsim_grade_s(submissions: int, jobs: int, seed: int = 1) -> float:
+    """Wall seconds for `appsim grade CLASS --jobs N` on `submissions` copies of the solutions (Ex1..Ex6),
+    the whole command as an instructor runs it, Python's start included."""
+    with tempfile.TemporaryDirectory(prefix="appsim-bench-") as scratch:
+        room = Path(scratch) / "class"
+        for k in range(submissions):
+            student = room / f"student{k:02d}"
+            student.mkdir(parents=True)
+            for n in EXERCISES:
+                shutil.copy(SOLUTIONS / f"ex{n}.py", student)
+        started = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "appsim", "grade", str(room), "--jobs", str(jobs), "--seed", str(seed),
+                        "--json", str(Path(scratch) / "grades.jsonl")], check=True, capture_output=True)
+        return time.perf_counter() - started
