@@ -16,7 +16,8 @@ ROWS = (
     "busy-wait on CANIsRxReady(), a frame every 100 ms",
     "busy-wait on CANIsRxReady(), no frames",
     "grade one submission (solutions of Ex1..Ex6)",
-    "grade a class of 30 with --jobs 2",
+    "appsim grade: one submission (Ex1..Ex6), sandboxed",
+    "appsim grade: a class of 2 with --jobs 2",
     "linked: Ex2 frame spacing at a python-can peer",
     "linked: RTR round trip peer -> master -> peer",
 )
