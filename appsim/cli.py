@@ -380,7 +380,8 @@ def build_parser() -> argparse.ArgumentParser:
     grade.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: the cores)")
     grade.add_argument("--seed", type=int, help="seed of the random inputs (default: drawn, printed, recorded)")
     grade.add_argument("--time-limit", type=_seconds, default=60.0,
-                       help="wall-clock seconds per exercise (default 60; 10 s without a register access stops it)")
+                       help="wall-clock seconds per exercise (default 60; a few seconds without a register "
+                            "access stop it)")
     grade.set_defaults(handler=cmd_grade)
     return parser
 

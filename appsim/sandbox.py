@@ -24,6 +24,7 @@ from types import ModuleType
 from typing import Any, ClassVar
 
 from appsim.mcu import PIC18F8680, current_mcu
+from appsim.watchdog import FirmwareHung
 
 NOBODY = 65534
 # Wire format (little-endian; a message is a u32 length, then its bytes). Child to grader: a batch of `W`
@@ -188,12 +189,12 @@ class RemoteFirmware:
                                      "wall time; firmware this slow would not keep up with the bus")
             try:
                 message = channel.receive(min(self.limits.stall_s, self.deadline - now))
-            except TimeoutError:
+            except (TimeoutError, FirmwareHung):      # our limit, or the simulator's watchdog, whichever first
                 if time.monotonic() >= self.deadline:
                     continue
-                return Fault("stalled", f"the firmware stopped answering: {self.limits.stall_s:g} s of wall time "
-                                        "without touching a register (an endless loop that reads nothing, such "
-                                        "as `while True: pass`?)")
+                return Fault("stalled", "the firmware stopped answering: seconds of wall time went by without "
+                                        "it touching a register (an endless loop that reads nothing, such as "
+                                        "`while True: pass`?)")
             if message is None:
                 return None
             op = message[:1]
