@@ -199,6 +199,9 @@ class Bus:
         self.bit_rate = bit_rate
         self.bit_ps = PS_PER_SECOND // bit_rate
         sim.quantum_ps = max(sim.quantum_ps, self.bit_ps)
+        # While a frame or error frame holds the bus, what a node does (TXREQ, aborts, mode requests)
+        # takes effect at the next SOF at the earliest: no other node can see it before busy_until.
+        sim.quiet_until = lambda: self.busy_until
         self.ports: list[_Port] = []
         self._by_ecan: dict[int, _BoardPort] = {}
         self.trace: list[BusEvent] = []

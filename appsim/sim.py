@@ -48,12 +48,15 @@ class Simulator:
 
     `quantum_ps` lets a running firmware run ahead of other firmware by up to that much simulated
     time before it must hand over; it never runs past a hardware event. The bus sets it below the
-    shortest time in which one node's register write can become visible to another (one bit time).
+    shortest time in which one node's register write can become visible to another (one bit time),
+    and sets `quiet_until`: the time (its busy-until) before which nothing any firmware does now can
+    reach another node except through events already scheduled. Until then firmware runs on freely.
     """
 
     def __init__(self, *, quantum_ps: int = 0):
         self.now = 0
         self.quantum_ps = quantum_ps
+        self.quiet_until: Callable[[], int] = lambda: 0
         self._events: list[tuple[int, int, Timer]] = []
         self._ready: list[tuple[int, int, Process]] = []
         self._order = itertools.count()
@@ -121,8 +124,10 @@ class Simulator:
                 self.now = time
                 # How far it may go before it must hand over: the next event, or the next process's quantum.
                 horizon = events[0][0] if events else float("inf")
-                if ready and ready[0][0] + self.quantum_ps < horizon:
-                    horizon = ready[0][0] + self.quantum_ps
+                if ready:
+                    others = max(ready[0][0], self.quiet_until()) + self.quantum_ps
+                    if others < horizon:
+                        horizon = others
                 process.horizon = horizon
                 self.running = process
                 if process.parent is not scheduler:
