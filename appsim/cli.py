@@ -34,11 +34,15 @@ def _potentiometer(text: str) -> int:
     return value
 
 
-def _seconds(text: str) -> float:
+def _seconds(text: str, what: str = "simulated time") -> float:
     value = float(text)
     if not 0 < value <= 3600:
-        raise argparse.ArgumentTypeError(f"simulated time must be between 0 and 3600 s; got {value}")
+        raise argparse.ArgumentTypeError(f"{what} must be between 0 and 3600 s; got {value}")
     return value
+
+
+def _wall_seconds(text: str) -> float:
+    return _seconds(text, "the time limit (wall-clock seconds)")
 
 
 def _exercise(text: str) -> int:
@@ -379,7 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="Gradescope results.json (one submission), else a directory of NAME.json")
     grade.add_argument("--jobs", type=int, default=None, help="submissions graded at once (default: the cores)")
     grade.add_argument("--seed", type=int, help="seed of the random inputs (default: drawn, printed, recorded)")
-    grade.add_argument("--time-limit", type=_seconds, default=60.0,
+    grade.add_argument("--time-limit", type=_wall_seconds, default=60.0,
                        help="wall-clock seconds per exercise (default 60; a few seconds without a register "
                             "access stop it)")
     grade.set_defaults(handler=cmd_grade)
