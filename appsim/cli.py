@@ -279,6 +279,14 @@ def cmd_bittiming(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_check(args: argparse.Namespace) -> int:
+    """One exercise, checked as in the notebook: the verdict, and exit status 0 only with full marks."""
+    from appsim.checks import check
+    verdict = check(args.exercise, args.firmware, seed=args.seed)
+    print(verdict)
+    return 0 if verdict.passed else 1
+
+
 def cmd_grade(args: argparse.Namespace) -> int:
     from appsim.grade import GradeError, run
     from appsim.sandbox import Limits
@@ -387,6 +395,17 @@ def build_parser() -> argparse.ArgumentParser:
                        help="wall-clock seconds per exercise (default 60; a few seconds without a register "
                             "access stop it)")
     grade.set_defaults(handler=cmd_grade)
+
+    checking = commands.add_parser(
+        "check", help="check your firmware for one exercise, as the notebook does",
+        description="Run FIRMWARE (default: exercises/exN.py) in a simulated classroom and judge what it did on "
+                    "the bus and the board: the same check the notebook's last cell runs and `appsim grade` uses. "
+                    "Exit status 0 with full marks.")
+    checking.add_argument("exercise", choices=("ex1", "ex2", "ex3", "ex4", "ex5", "ex6", "demo1"),
+                          metavar="EXERCISE", help="ex1 .. ex6 or demo1")
+    checking.add_argument("firmware", nargs="?", help="your firmware file (default: exercises/EXERCISE.py)")
+    checking.add_argument("--seed", type=int, help="seed of the random inputs (default: a fresh one, printed)")
+    checking.set_defaults(handler=cmd_check)
     return parser
 
 

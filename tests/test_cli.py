@@ -78,3 +78,11 @@ def test_joining_with_another_stations_id_warns_and_the_bus_shows_why(tmp_path):
 def test_bad_input_gets_a_clear_error(argv, complaint):
     result = appsim(*argv, cwd=KIT)
     assert result.returncode != 0 and complaint in result.stderr
+
+
+def test_check_gives_the_verdict_and_exit_status_a_script_can_use():
+    starter = appsim("check", "ex1", "--seed", "3", cwd=KIT)
+    assert starter.returncode == 1 and "EX1: 3/5 (seed 3)" in starter.stdout
+    assert "Set RX_Filter0 to MESSAGE_ID1" in starter.stdout
+    solution = appsim("check", "ex1", str(KIT / "solutions" / "ex1.py"), "--seed", "3", cwd=KIT)
+    assert solution.returncode == 0 and "EX1: 5/5 (seed 3)" in solution.stdout
