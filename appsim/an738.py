@@ -107,8 +107,15 @@ globals().update({name: value for group in (CAN_CONFIG_FLAGS, CAN_TX_MSG_FLAGS, 
                   for name, value in vars(group).items() if name.startswith("CAN_")})
 globals().update({m.name: m for group in (CAN_OP_MODE, CAN_MASK, CAN_FILTER) for m in group})
 
-_A = {r.name: r.address for r in R.REGISTERS}
-_WIN_TX = {"TXB0": 0b100, "TXB1": 0b011, "TXB2": 0b010}
+# Register addresses, resolved from the register map once rather than by name on every call.
+(_BRGCON1, _BRGCON2, _BRGCON3, _CANCON, _CANSTAT, _COMSTAT, _PIR3, _RXB0CON, _RXB0D0, _RXB0DLC, _RXB0EIDH,
+ _RXB0EIDL, _RXB0SIDH, _RXB0SIDL, _RXB1CON, _RXERRCNT, _TXERRCNT) = (R.BY_NAME[name].address for name in (
+    "BRGCON1", "BRGCON2", "BRGCON3", "CANCON", "CANSTAT", "COMSTAT", "PIR3", "RXB0CON", "RXB0D0", "RXB0DLC",
+    "RXB0EIDH", "RXB0EIDL", "RXB0SIDH", "RXB0SIDL", "RXB1CON", "RXERRCNT", "TXERRCNT"))
+_TXB_CON = tuple(R.BY_NAME[buffer + "CON"].address for buffer in R.TX_BUFFERS)        # TXB0CON, TXB1CON, TXB2CON
+_TX_WINDOWS = tuple(zip(_TXB_CON, (0b100, 0b011, 0b010)))                             # (TXBnCON, CANCON.WIN)
+_RXM_SIDH = tuple(R.BY_NAME[f"RXM{n}SIDH"].address for n in range(2))
+_RXF_SIDH = tuple(R.BY_NAME[f"RXF{n}SIDH"].address for n in range(6))
 _WIN_RXB1 = 0b101
 _MODES = {m.value: m.name for m in CAN_OP_MODE if m is not CAN_OP_MODE.CAN_OP_MODE_BITS}
 
@@ -140,7 +147,7 @@ def _mcu() -> PIC18F8680:
 
 def _window(mcu: PIC18F8680, win: int) -> None:
     """CANCON.WIN = win, by read-modify-write as the library does (`CANCON &= 0b11110001; |= ...`)."""
-    mcu.write(_A["CANCON"], (mcu.read(_A["CANCON"]) & 0b11110001) | (win << 1))
+    mcu.write(_CANCON, (mcu.read(_CANCON) & 0b11110001) | (win << 1))
 
 
 def _check_range(name: str, value: int, low: int, high: int, consequence: str) -> None:
@@ -175,21 +182,21 @@ def CANSetOperationModeNoWait(mode: int) -> None:
     """CANCON = mode: requests the mode (and clears ABAT and WIN); does not wait."""
     _check_mode(mode)
     mcu = _mcu()
-    mcu.write(_A["CANCON"], mode)
+    mcu.write(_CANCON, mode)
 
 
 def CANSetOperationMode(mode: int) -> None:
     """Request `mode` and wait until CANSTAT.OPMODE shows it (the module waits for the bus to be idle)."""
     _check_mode(mode)
     mcu = _mcu()
-    mcu.write(_A["CANCON"], mode)
-    while (mcu.read(_A["CANSTAT"]) & CAN_OP_MODE.CAN_OP_MODE_BITS) != mode:
+    mcu.write(_CANCON, mode)
+    while (mcu.read(_CANSTAT) & CAN_OP_MODE.CAN_OP_MODE_BITS) != mode:
         pass
 
 
 def CANGetOperationMode() -> int:
     """The requested mode, CANCON & 0xE0 (not CANSTAT: the mode asked for, not the mode reached)."""
-    return _mcu().read(_A["CANCON"]) & CAN_OP_MODE.CAN_OP_MODE_BITS
+    return _mcu().read(_CANCON) & CAN_OP_MODE.CAN_OP_MODE_BITS
 
 
 def CANSetBaudRate(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
@@ -202,23 +209,22 @@ def CANSetBaudRate(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
     _check_range("PHSEG2", PHSEG2, 1, 8, wrap)
     _check_range("PROPSEG", PROPSEG, 1, 8, wrap)
     mcu = _mcu()
-    mcu.write(_A["BRGCON1"], ((SJW - 1) << 6) | (BRP - 1))
+    mcu.write(_BRGCON1, ((SJW - 1) << 6) | (BRP - 1))
     brgcon2 = ((PHSEG1 - 1) << 3) | (PROPSEG - 1)
     if not flags & CAN_CONFIG_FLAGS.CAN_CONFIG_SAMPLE_BIT:
         brgcon2 |= 0x40                                 # SAM: sample three times
     if flags & CAN_CONFIG_FLAGS.CAN_CONFIG_PHSEG2_PRG_BIT:
         brgcon2 |= 0x80                                 # SEG2PHTS: PHSEG2 freely programmable
-    mcu.write(_A["BRGCON2"], brgcon2)
+    mcu.write(_BRGCON2, brgcon2)
     brgcon3 = PHSEG2 - 1
     if flags & CAN_CONFIG_FLAGS.CAN_CONFIG_LINE_FILTER_BIT:
         brgcon3 |= 0x40                                 # WAKFIL
-    mcu.write(_A["BRGCON3"], brgcon3)
+    mcu.write(_BRGCON3, brgcon3)
 
 
-def _write_id(mcu: PIC18F8680, sidh_register: str, value: int, extended: bool) -> None:
-    """CANIDToRegs: the ID into SIDH, SIDL (and EIDH, EIDL when extended)."""
+def _write_id(mcu: PIC18F8680, base: int, value: int, extended: bool) -> None:
+    """CANIDToRegs: the ID into SIDH (at `base`), SIDL (and EIDH, EIDL when extended)."""
     sidh, sidl, eidh, eidl = pack_id(value, extended)
-    base = _A[sidh_register]
     mcu.write(base, sidh)
     mcu.write(base + 1, sidl)
     if extended:
@@ -235,7 +241,7 @@ def CANSetMask(code: int, val: int, type: int) -> None:
         raise AN738Error(f"mask code {code!r} is not CAN_MASK_B1 or CAN_MASK_B2")
     extended = not type & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_TYPE_BIT
     _check_id(val, extended, "mask")
-    _write_id(_mcu(), f"RXM{code}SIDH", val, extended)
+    _write_id(_mcu(), _RXM_SIDH[code], val, extended)
 
 
 def CANSetFilter(code: int, val: int, type: int) -> None:
@@ -247,7 +253,7 @@ def CANSetFilter(code: int, val: int, type: int) -> None:
         raise AN738Error(f"filter code {code!r} is not one CAN_FILTER value (CAN_FILTER_B1_F1 .. CAN_FILTER_B2_F4)")
     extended = not type & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_TYPE_BIT
     _check_id(val, extended, "filter")
-    _write_id(_mcu(), f"RXF{code}SIDH", val, extended)
+    _write_id(_mcu(), _RXF_SIDH[code], val, extended)
 
 
 def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
@@ -262,10 +268,10 @@ def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
     CANSetBaudRate(SJW, BRP, PHSEG1, PHSEG2, PROPSEG, config)
     mcu = _mcu()
     rxbcon = config & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_BITS
-    mcu.write(_A["RXB0CON"], rxbcon)
+    mcu.write(_RXB0CON, rxbcon)
     if (config & CAN_CONFIG_FLAGS.CAN_CONFIG_DBL_BUFFER_BIT) == CAN_CONFIG_FLAGS.CAN_CONFIG_DBL_BUFFER_ON:
-        mcu.write(_A["RXB0CON"], mcu.read(_A["RXB0CON"]) | R.RXB0DBEN)   # never true (0x10 != 0xFF)
-    mcu.write(_A["RXB1CON"], mcu.read(_A["RXB0CON"]))
+        mcu.write(_RXB0CON, mcu.read(_RXB0CON) | R.RXB0DBEN)   # never true (0x10 != 0xFF)
+    mcu.write(_RXB1CON, mcu.read(_RXB0CON))
     CANSetMask(CAN_MASK.CAN_MASK_B1, 0, CAN_CONFIG_FLAGS.CAN_CONFIG_XTD_MSG)
     CANSetMask(CAN_MASK.CAN_MASK_B2, 0, CAN_CONFIG_FLAGS.CAN_CONFIG_XTD_MSG)
     msg_type = (config & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_BITS) | (~CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_BITS & 0xFF)
@@ -285,7 +291,10 @@ def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
 def CANIsTxReady() -> bool:
     """TRUE if at least one of TXB0..TXB2 has TXREQ = 0."""
     mcu = _mcu()
-    return any(not mcu.read(_A[b + "CON"]) & R.TXREQ for b in R.TX_BUFFERS)
+    for con in _TXB_CON:
+        if not mcu.read(con) & R.TXREQ:
+            return True
+    return False
 
 
 def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
@@ -306,18 +315,18 @@ def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
         raise AN738Error(f"DataLen is {DataLen} but only {len(data)} data bytes were given: the C "
                          "library would send whatever memory follows your array")
     mcu = _mcu()
-    for buffer in R.TX_BUFFERS:
-        if not mcu.read(_A[buffer + "CON"]) & R.TXREQ:
+    for con, win in _TX_WINDOWS:
+        if not mcu.read(con) & R.TXREQ:
             break
     else:
         return False
-    _window(mcu, _WIN_TX[buffer])
-    mcu.write(_A["RXB0CON"], MsgFlags & CAN_TX_MSG_FLAGS.CAN_TX_PRIORITY_BITS)   # TXBnCON.TXPRI
-    _write_id(mcu, "RXB0SIDH", id, extended)
-    mcu.write(_A["RXB0DLC"], DataLen | (R.TXRTR if remote else 0))
+    _window(mcu, win)
+    mcu.write(_RXB0CON, MsgFlags & CAN_TX_MSG_FLAGS.CAN_TX_PRIORITY_BITS)   # TXBnCON.TXPRI
+    _write_id(mcu, _RXB0SIDH, id, extended)
+    mcu.write(_RXB0DLC, DataLen | (R.TXRTR if remote else 0))
     for i in range(min(DataLen, len(data))):
-        mcu.write(_A["RXB0D0"] + i, data[i])
-    mcu.write(_A["RXB0CON"], mcu.read(_A["RXB0CON"]) | R.TXREQ)
+        mcu.write(_RXB0D0 + i, data[i])
+    mcu.write(_RXB0CON, mcu.read(_RXB0CON) | R.TXREQ)
     _window(mcu, 0b000)
     return True
 
@@ -325,7 +334,7 @@ def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
 def CANAbortAll() -> None:
     """CANCON.ABAT = 1: abort every pending transmission."""
     mcu = _mcu()
-    mcu.write(_A["CANCON"], mcu.read(_A["CANCON"]) | R.ABAT)
+    mcu.write(_CANCON, mcu.read(_CANCON) | R.ABAT)
 
 
 # ------------------------------------------------------------------ receive
@@ -333,7 +342,7 @@ def CANAbortAll() -> None:
 def CANIsRxReady() -> bool:
     """TRUE if RXB0 or RXB1 holds a message (RXFUL): one that passed the masks and filters."""
     mcu = _mcu()
-    return bool(mcu.read(_A["RXB0CON"]) & R.RXFUL or mcu.read(_A["RXB1CON"]) & R.RXFUL)
+    return bool(mcu.read(_RXB0CON) & R.RXFUL or mcu.read(_RXB1CON) & R.RXFUL)
 
 
 def CANReceiveMessage() -> CANMessage:
@@ -345,43 +354,42 @@ def CANReceiveMessage() -> CANMessage:
     """
     mcu = _mcu()
     flags = 0
-    if mcu.read(_A["RXB0CON"]) & R.RXFUL:
-        buffer = "RXB0"
+    if mcu.read(_RXB0CON) & R.RXFUL:
+        con_address = _RXB0CON
         _window(mcu, 0b000)
-        mcu.write(_A["PIR3"], mcu.read(_A["PIR3"]) & ~R.RXB0IF)
-        if mcu.read(_A["COMSTAT"]) & R.RXB0OVFL:
+        mcu.write(_PIR3, mcu.read(_PIR3) & ~R.RXB0IF)
+        if mcu.read(_COMSTAT) & R.RXB0OVFL:
             flags |= CAN_RX_MSG_FLAGS.CAN_RX_OVERFLOW
-            mcu.write(_A["COMSTAT"], mcu.read(_A["COMSTAT"]) & ~R.RXB0OVFL)
-        con = mcu.read(_A["RXB0CON"])
+            mcu.write(_COMSTAT, mcu.read(_COMSTAT) & ~R.RXB0OVFL)
+        con = mcu.read(_RXB0CON)
         if con & R.RXB0DBEN:
             flags |= con & CAN_RX_MSG_FLAGS.CAN_RX_FILTER_BITS
             flags &= 0x01
-    elif mcu.read(_A["RXB1CON"]) & R.RXFUL:
-        buffer = "RXB1"
+    elif mcu.read(_RXB1CON) & R.RXFUL:
+        con_address = _RXB1CON
         _window(mcu, _WIN_RXB1)
-        mcu.write(_A["PIR3"], mcu.read(_A["PIR3"]) & ~R.RXB1IF)
-        if mcu.read(_A["COMSTAT"]) & R.RXB1OVFL:
+        mcu.write(_PIR3, mcu.read(_PIR3) & ~R.RXB1IF)
+        if mcu.read(_COMSTAT) & R.RXB1OVFL:
             flags |= CAN_RX_MSG_FLAGS.CAN_RX_OVERFLOW
-            mcu.write(_A["COMSTAT"], mcu.read(_A["COMSTAT"]) & ~R.RXB1OVFL)
-        flags |= mcu.read(_A["RXB1CON"]) & CAN_RX_MSG_FLAGS.CAN_RX_FILTER_BITS
+            mcu.write(_COMSTAT, mcu.read(_COMSTAT) & ~R.RXB1OVFL)
+        flags |= mcu.read(_RXB1CON) & CAN_RX_MSG_FLAGS.CAN_RX_FILTER_BITS
         if flags < 0x02:
             flags |= CAN_RX_MSG_FLAGS.CAN_RX_DBL_BUFFERED
     else:
         return NO_MESSAGE
-    dlc_register = mcu.read(_A["RXB0DLC"])
+    dlc_register = mcu.read(_RXB0DLC)
     length = dlc_register & 0x0F
     if dlc_register & R.RXRTR:
         flags |= CAN_RX_MSG_FLAGS.CAN_RX_RTR_FRAME
-    sidl = mcu.read(_A["RXB0SIDL"])
+    sidl = mcu.read(_RXB0SIDL)
     if sidl & R.EXIDE:
         flags |= CAN_RX_MSG_FLAGS.CAN_RX_XTD_FRAME
-    rx_id, _ = unpack_id(mcu.read(_A["RXB0SIDH"]), sidl, mcu.read(_A["RXB0EIDH"]), mcu.read(_A["RXB0EIDL"]))
-    data = bytes(mcu.read(_A["RXB0D0"] + i) for i in range(min(length, 8)))
+    rx_id, _ = unpack_id(mcu.read(_RXB0SIDH), sidl, mcu.read(_RXB0EIDH), mcu.read(_RXB0EIDL))
+    data = bytes(mcu.read(_RXB0D0 + i) for i in range(min(length, 8)))
     _window(mcu, 0b000)
-    if mcu.read(_A["PIR3"]) & R.IRXIF:
+    if mcu.read(_PIR3) & R.IRXIF:
         flags |= CAN_RX_MSG_FLAGS.CAN_RX_INVALID_MSG
-        mcu.write(_A["PIR3"], mcu.read(_A["PIR3"]) & ~R.IRXIF)
-    con_address = _A[buffer + "CON"]
+        mcu.write(_PIR3, mcu.read(_PIR3) & ~R.IRXIF)
     mcu.write(con_address, mcu.read(con_address) & ~R.RXFUL)
     return CANMessage(rx_id, data, length, flags)
 
@@ -390,25 +398,25 @@ def CANReceiveMessage() -> CANMessage:
 
 def CANIsBusOff() -> bool:
     """COMSTAT.TXBO: the transmit error counter passed 255."""
-    return bool(_mcu().read(_A["COMSTAT"]) & R.TXBO)
+    return bool(_mcu().read(_COMSTAT) & R.TXBO)
 
 
 def CANIsTxPassive() -> bool:
     """COMSTAT.TXBP: the transmit error counter passed 127."""
-    return bool(_mcu().read(_A["COMSTAT"]) & R.TXBP)
+    return bool(_mcu().read(_COMSTAT) & R.TXBP)
 
 
 def CANIsRxPassive() -> bool:
     """COMSTAT.RXBP: the receive error counter passed 127."""
-    return bool(_mcu().read(_A["COMSTAT"]) & R.RXBP)
+    return bool(_mcu().read(_COMSTAT) & R.RXBP)
 
 
 def CANGetTxErrorCount() -> int:
-    return _mcu().read(_A["TXERRCNT"])
+    return _mcu().read(_TXERRCNT)
 
 
 def CANGetRxErrorCount() -> int:
-    return _mcu().read(_A["RXERRCNT"])
+    return _mcu().read(_RXERRCNT)
 
 
 __all__ = (
