@@ -8,7 +8,6 @@ import logging
 import os
 import socket
 import sys
-import tty
 from typing import Literal
 
 from appsim.board import APP023
@@ -47,6 +46,7 @@ class UsbCdc:
         self.port: str | None = None
         if transport == "pty":
             self._master, self._slave = os.openpty()
+            import tty                           # POSIX only: Windows takes the socket transport
             tty.setraw(self._slave)              # bytes pass untouched: no echo, no CR/LF translation
             os.set_blocking(self._master, False)
             self.port = os.ttyname(self._slave)

@@ -24,8 +24,10 @@ class FirmwareHung(RuntimeError):
 
 @contextmanager
 def watchdog(sim: "Simulator", seconds: float = WATCHDOG_SECONDS) -> Iterator[None]:
-    """Watch the firmware `sim` runs, from the main thread (elsewhere, or if SIGALRM is taken: no watch)."""
-    if (threading.current_thread() is not threading.main_thread()
+    """Watch the firmware `sim` runs, from the main thread (elsewhere, on Windows, or if SIGALRM is taken:
+    no watch)."""
+    if (not hasattr(signal, "setitimer")                  # Windows: no interval timers, no watch
+            or threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGALRM) not in (signal.SIG_DFL, None)):
         yield
         return
