@@ -7,8 +7,8 @@ peripheral event changes something: a busy-wait costs one loop turn per event, n
 from __future__ import annotations
 
 import sys
-
 from collections.abc import Callable, Iterable
+from types import CodeType
 from typing import Any, Protocol
 
 import greenlet
@@ -20,6 +20,8 @@ from appsim.sim import PS_PER_SECOND, Process, Simulator
 FOSC_HZ = 40_000_000            # APP023: 10 MHz crystal with the 4x PLL
 SFR_ACCESS_CYCLES = 2           # a C statement touching an SFR: MOVFF / MOVF + MOVWF, with banking
 CALL_CYCLES = 10                # CALL/RETURN and argument passing of a C18 library function
+
+_getcurrent = greenlet.getcurrent
 
 
 class Peripheral(Protocol):
@@ -61,19 +63,16 @@ class PIC18F8680:
             self._devices[address] = device
 
     # -------------------------------------------------------------- firmware access
-    def _in_firmware(self) -> Process | None:
-        process = self.process
-        return process if process is not None and greenlet.getcurrent() is process else None
-
     def read(self, address: int, site: object = None) -> int:
         """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox)."""
-        process = self._in_firmware()
-        if process is not None:
+        process = self.process
+        if process is not None and _getcurrent() is process:
             process.spend(self._access_ps)
-            if self._seen.get(address) == self.version and address not in self.time_varying:
-                if self._stale_version != self.version:
+            version = self.version          # after spend: other firmware and events may have run
+            if self._seen.get(address) == version and address not in self.time_varying:
+                if self._stale_version != version:
                     self._stale_sites.clear()
-                    self._stale_version = self.version
+                    self._stale_version = version
                 site = (address, _firmware_location() if site is None else site)
                 if site in self._stale_sites:
                     process.park()      # a polling loop: nothing can differ until a peripheral event
@@ -84,8 +83,8 @@ class PIC18F8680:
         return device.read(address) if device is not None else 0
 
     def write(self, address: int, value: int) -> None:
-        process = self._in_firmware()
-        if process is not None:
+        process = self.process
+        if process is not None and _getcurrent() is process:
             process.spend(self._access_ps)
         self.version += 1
         device = self._devices.get(address)
@@ -106,8 +105,8 @@ class PIC18F8680:
 
     def spend_cycles(self, cycles: int) -> None:
         """Time the firmware spends computing (instruction cycles at Fosc/4)."""
-        process = self._in_firmware()
-        if process is not None:
+        process = self.process
+        if process is not None and _getcurrent() is process:
             process.spend(cycles * self.tcy_ps)
 
     # -------------------------------------------------------------- hardware side
@@ -127,13 +126,24 @@ class PIC18F8680:
         return self.process
 
 
-def _firmware_location() -> tuple:
-    """Where in the firmware (outside this package) the current access comes from: its call stack."""
+# id(code object) -> (that code object, kept alive so the id stays its own; is it this package's code?).
+# Keyed by id: a code object's own hash is recomputed from its whole content on every call.
+_IS_KIT: dict[int, tuple[CodeType, bool]] = {}
+
+
+def _firmware_location() -> tuple[tuple[int, int], ...]:
+    """Where in the firmware (outside this package) the current access comes from: its call stack,
+    as (id of the code object, instruction offset) of each firmware frame."""
     frame = sys._getframe(2)
     location = []
+    is_kit = _IS_KIT
     while frame is not None:
-        if not frame.f_globals.get("__name__", "").startswith("appsim."):
-            location.append((frame.f_code, frame.f_lasti))
+        code = frame.f_code
+        known = is_kit.get(id(code))
+        if known is None:
+            known = is_kit[id(code)] = (code, frame.f_globals.get("__name__", "").startswith("appsim."))
+        if not known[1]:
+            location.append((id(code), frame.f_lasti))
         frame = frame.f_back
     return tuple(location)
 
