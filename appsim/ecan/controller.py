@@ -71,7 +71,7 @@ _READ_KIND: dict[int, int] = {
 _WINDOW_SHIFT = tuple(R.BUFFER_BASE[R.WINDOW[win]] - R.WINDOW_FIRST for win in range(8))
 _TXREQ_LOCK = {r.address: R.BUFFER_BASE[r.name[:4]] - 0xF00 for r in R.REGISTERS   # TXBn data: CON index
                if r.name[:3] == "TXB" and r.name[4:] != "CON"}
-_RESETS_ACCEPTANCE = frozenset(r.address for r in R.REGISTERS if r.protected or r.name in ("RXB0CON", "RXB1CON"))
+_RESETS_ACCEPTANCE = frozenset(r.address for r in R.REGISTERS if r.protected)   # filters and masks among them
 _SIDE_EFFECTS = frozenset(R.BY_NAME[n].address for n in ("CANCON", "TXB0CON", "TXB1CON", "TXB2CON", "RXB0CON",
                                                         "ECANCON"))
 
