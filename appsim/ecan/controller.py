@@ -103,6 +103,7 @@ class ECAN:
         self._abort_requested: set[str] = set()
         self._recovery_sequences = 0
         self._acceptance: dict[str, tuple[tuple[Filter, ...], int]] | None = None
+        self._tx_frames: dict[int, CanFrame] = {}   # TX buffer (CON index) -> its frame, until its registers change
 
     @property
     def requested_mode(self) -> Mode:
@@ -168,9 +169,11 @@ class ECAN:
         index = address - 0xF00
         old = self._sfr[index]
         lock = _TXREQ_LOCK.get(address)
-        if lock is not None and self._sfr[lock] & R.TXREQ:
-            self.ignored_writes.append((reg.name, value & 0xFF))   # locked while TXREQ = 1
-            return
+        if lock is not None:
+            if self._sfr[lock] & R.TXREQ:
+                self.ignored_writes.append((reg.name, value & 0xFF))   # locked while TXREQ = 1
+                return
+            self._tx_frames.pop(lock, None)
         new = (old & ~reg.writable & 0xFF) | (value & reg.writable)
         new &= ~(reg.clear_only & ~value) & 0xFF
         self._sfr[index] = new
@@ -271,8 +274,17 @@ class ECAN:
         return best
 
     def frame_in(self, buffer: str) -> CanFrame:
-        """The frame a TX or RX buffer holds, decoded from its registers."""
+        """The frame a TX or RX buffer holds, decoded from its registers (a TX buffer's once per content:
+        it waits through arbitrations unchanged, and only the CPU writes its identifier, DLC and data)."""
         base = R.BUFFER_BASE[buffer] - 0xF00
+        frame = self._tx_frames.get(base)
+        if frame is None:
+            frame = self._decode(base)
+            if buffer in R.TX_BUFFERS:
+                self._tx_frames[base] = frame
+        return frame
+
+    def _decode(self, base: int) -> CanFrame:
         sfr = self._sfr
         can_id, extended = unpack_id(sfr[base + 1], sfr[base + 2], sfr[base + 3], sfr[base + 4])
         dlc_reg = sfr[base + 5]
