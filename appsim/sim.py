@@ -154,6 +154,10 @@ class Process(greenlet.greenlet):
     first), or parks when it is polling a world that has not changed.
     """
 
+    # Slots: attributes of a greenlet subclass are otherwise looked up the slow way, on every register access.
+    __slots__ = ("sim", "name", "main", "context", "local_time", "horizon", "parked", "finished", "failure",
+                 "failure_text")
+
     def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: Any):
         super().__init__(self._body)
         self.sim = sim
