@@ -67,7 +67,9 @@ class PIC18F8680:
         """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox)."""
         process = self.process
         if process is not None and _getcurrent() is process:
-            process.spend(self._access_ps)
+            process.local_time += self._access_ps     # process.spend, its common case inline
+            if process.local_time > process.horizon:
+                process.spend(0)
             version = self.version          # after spend: other firmware and events may have run
             if self._seen.get(address) == version and address not in self.time_varying:
                 if self._stale_version != version:
