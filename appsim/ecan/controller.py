@@ -26,7 +26,11 @@ class Mode(enum.IntEnum):
     @classmethod
     def from_reqop(cls, reqop: int) -> "Mode":
         """REQOP = 1xx requests Configuration; 101, 110 and 111 read back as OPMODE 100."""
-        return cls.CONFIGURATION if reqop & 0b100 else cls(reqop)
+        return _MODE_OF_REQOP[reqop]
+
+
+# Looked up rather than built: CANCON is written at every CANCON.WIN change, and enum construction is slow.
+_MODE_OF_REQOP = tuple(Mode.CONFIGURATION if reqop & 0b100 else Mode(reqop) for reqop in range(8))
 
 
 class UnsupportedMode(ValueError):
@@ -63,6 +67,7 @@ _RXF_OF = {"RXB0": (0, 1), "RXB1": (2, 3, 4, 5)}
 _MASK_OF = {"RXB0": 0, "RXB1": 1}
 
 # What a CPU access to each address does, decided once from the register map rather than on every access.
+_CONFIGURATION = Mode.CONFIGURATION      # an enum member is slow to look up on its class (CPython 3.11)
 _PLAIN, _PROTECTED, _CANSTAT, _COMSTAT, _TXERRCNT, _RXERRCNT = range(6)
 _READ_KIND: dict[int, int] = {
     r.address: (_PROTECTED if r.protected else _CANSTAT if r.name.startswith("CANSTAT")
@@ -150,7 +155,7 @@ class ECAN:
         if kind is None:
             return 0
         if kind == _PROTECTED:
-            return self._sfr[address - 0xF00] if self.opmode == Mode.CONFIGURATION else 0
+            return self._sfr[address - 0xF00] if self.opmode == _CONFIGURATION else 0
         if kind == _CANSTAT:
             return (self.opmode << 5) | (self._icode() << 1)
         if kind == _COMSTAT:
@@ -163,7 +168,7 @@ class ECAN:
         reg = R.BY_ADDRESS.get(address)
         if reg is None:
             return
-        if reg.protected and self.opmode != Mode.CONFIGURATION:
+        if reg.protected and self.opmode != _CONFIGURATION:
             self.ignored_writes.append((reg.name, value & 0xFF))
             return
         index = address - 0xF00
