@@ -83,10 +83,10 @@ class _BoardPort(_Port):
     suspend_until: int = 0
     loop_busy_until: int = 0
     mode_timer: Timer | None = None
+    ecan: ECAN = field(init=False, repr=False)
 
-    @property
-    def ecan(self) -> ECAN:
-        return self.mcu.ecan
+    def __post_init__(self) -> None:
+        self.ecan = self.mcu.ecan
 
     @property
     def name(self) -> str:
@@ -331,9 +331,13 @@ class Bus:
         for port in self.ports:
             if not self._on_bus(port, Mode.NORMAL):
                 continue
-            if port.pending() is None:
+            pending = port.pending()
+            if pending is None:
                 continue
-            (contenders if port.suspend_until <= now else waiting).append(port)
+            if port.suspend_until <= now:
+                contenders.append((port, pending))
+            else:
+                waiting.append(port)
         if not contenders:
             if waiting:
                 self._schedule_arbitration(min(p.suspend_until for p in waiting))
@@ -342,8 +346,7 @@ class Bus:
         for port in self.ports:
             port.activity()
         entries = []
-        for port in contenders:
-            buffer, frame = port.pending()
+        for port, (buffer, frame) in contenders:
             port.started(buffer)
             entries.append((_arbitration_key(frame), port, buffer, frame))
         entries.sort(key=lambda e: e[0])
