@@ -155,8 +155,8 @@ class Process(greenlet.greenlet):
     """
 
     # Slots: attributes of a greenlet subclass are otherwise looked up the slow way, on every register access.
-    __slots__ = ("sim", "name", "main", "context", "local_time", "horizon", "parked", "finished", "failure",
-                 "failure_text")
+    __slots__ = ("context", "failure", "failure_text", "finished", "horizon", "local_time", "main", "name", "parked",
+                 "sim")
 
     def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: Any):
         super().__init__(self._body)
