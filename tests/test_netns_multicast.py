@@ -49,6 +49,7 @@ def test_a_frame_sent_on_one_pc_arrives_on_the_other_two_and_never_on_the_host(n
 def test_the_host_watch_sees_a_packet_on_the_hosts_own_interfaces():
     if reason := unavailable():
         pytest.skip(reason)
-    with HostWatch(PORT) as watch, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
-        udp.sendto(b"appsim", ("127.0.0.1", PORT))
-    assert f"UDP to port {PORT} on the host's lo" in watch.seen
+    control = PORT + 1          # not python-can's port, so a test running beside this one is not disturbed
+    with HostWatch(control) as watch, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
+        udp.sendto(b"appsim", ("127.0.0.1", control))
+    assert f"UDP to port {control} on the host's lo" in watch.seen
