@@ -35,7 +35,28 @@ class NotOnABoard(RuntimeError):
     """A firmware function was called outside firmware running on a simulated board."""
 
 
-class PIC18F8680:
+class SFRNames:
+    """Registers by their datasheet names, on top of `read` and `write` by address."""
+
+    sfr_addresses: dict[str, int]
+
+    def read(self, address: int, site: object = None) -> int: ...
+    def write(self, address: int, value: int) -> None: ...
+
+    def address_of(self, name: str) -> int:
+        try:
+            return self.sfr_addresses[name]
+        except KeyError:
+            raise KeyError(f"the PIC18F8680 has no special function register named {name!r}") from None
+
+    def read_name(self, name: str) -> int:
+        return self.read(self.address_of(name))
+
+    def write_name(self, name: str, value: int) -> None:
+        self.write(self.address_of(name), value)
+
+
+class PIC18F8680(SFRNames):
     """One microcontroller on the simulated clock, with its ECAN module mapped at F00h..F77h, FA3h..FA5h."""
 
     def __init__(self, sim: Simulator, name: str = "node", *, fosc: int = FOSC_HZ):
@@ -92,18 +113,6 @@ class PIC18F8680:
         device = self._devices.get(address)
         if device is not None:
             device.write(address, value & 0xFF)
-
-    def address_of(self, name: str) -> int:
-        try:
-            return self.sfr_addresses[name]
-        except KeyError:
-            raise KeyError(f"the PIC18F8680 has no special function register named {name!r}") from None
-
-    def read_name(self, name: str) -> int:
-        return self.read(self.address_of(name))
-
-    def write_name(self, name: str, value: int) -> None:
-        self.write(self.address_of(name), value)
 
     def spend_cycles(self, cycles: int) -> None:
         """Time the firmware spends computing (instruction cycles at Fosc/4)."""

@@ -23,7 +23,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, ClassVar
 
-from appsim.mcu import PIC18F8680, current_mcu
+from appsim.mcu import PIC18F8680, SFRNames, current_mcu
 from appsim.watchdog import FirmwareHung
 
 NOBODY = 65534
@@ -386,7 +386,7 @@ def fork_server() -> None:
             control.send(json.dumps({"status": status}).encode())
 
 
-class _RemoteMCU:
+class _RemoteMCU(SFRNames):
     """What `current_mcu()` returns in the child: the board's PIC18F8680, across the socket."""
 
     def __init__(self, fd: int, addresses: dict[str, int]):
@@ -403,18 +403,6 @@ class _RemoteMCU:
         self._pending += _WRITE.pack(b"W", _address(address), value & 0xFF)
         if len(self._pending) > _BATCH_BYTES:
             self.flush()
-
-    def address_of(self, name: str) -> int:
-        try:
-            return self.sfr_addresses[name]
-        except KeyError:
-            raise KeyError(f"the PIC18F8680 has no special function register named {name!r}") from None
-
-    def read_name(self, name: str) -> int:
-        return self.read(self.address_of(name))
-
-    def write_name(self, name: str, value: int) -> None:
-        self.write(self.address_of(name), value)
 
     def spend_cycles(self, cycles: int) -> None:
         if not isinstance(cycles, int) or cycles < 0:
