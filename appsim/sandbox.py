@@ -24,7 +24,6 @@ from types import ModuleType
 from typing import Any, ClassVar
 
 from appsim.mcu import PIC18F8680, SFRNames, current_mcu
-from appsim.watchdog import FirmwareHung
 
 NOBODY = 65534
 # Wire format (little-endian; a message is a u32 length, then its bytes). Child to grader: a batch of `W`
@@ -147,6 +146,7 @@ class RemoteFirmware:
 
     def __call__(self) -> None:
         mcu = current_mcu()
+        mcu.process.watched = False      # the child's own limits (stall_s, time_s) govern it, not the watchdog
         directory = Path(tempfile.mkdtemp(prefix="appsim-firmware-"))
         pid = None
         try:
@@ -189,7 +189,7 @@ class RemoteFirmware:
                                      "wall time; firmware this slow would not keep up with the bus")
             try:
                 message = channel.receive(min(self.limits.stall_s, self.deadline - now))
-            except (TimeoutError, FirmwareHung):      # our limit, or the simulator's watchdog, whichever first
+            except TimeoutError:
                 if time.monotonic() >= self.deadline:
                     continue
                 return Fault("stalled", "the firmware stopped answering: seconds of wall time went by without "

@@ -156,7 +156,7 @@ class Process(greenlet.greenlet):
 
     # Slots: attributes of a greenlet subclass are otherwise looked up the slow way, on every register access.
     __slots__ = ("context", "failure", "failure_text", "finished", "horizon", "local_time", "main", "name", "parked",
-                 "sim")
+                 "sim", "watched")
 
     def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: Any):
         super().__init__(self._body)
@@ -167,6 +167,7 @@ class Process(greenlet.greenlet):
         self.local_time = sim.now
         self.horizon: float = 0
         self.parked = False
+        self.watched = True           # by the watchdog (a sandboxed firmware has its own limits)
         self.finished = False
         self.failure: BaseException | None = None
         self.failure_text = ""

@@ -35,7 +35,7 @@ def watchdog(sim: "Simulator", seconds: float = WATCHDOG_SECONDS) -> Iterator[No
 
     def bark(signum: int, frame: object) -> None:
         process = sim.running
-        now = None if process is None else (process, process.local_time)
+        now = None if process is None or not process.watched else (process, process.local_time)
         if now is not None and now == tuple(seen):
             raise FirmwareHung(f"the firmware of {process.name} ran {seconds:g} s (wall time) without touching "
                                "any register: an endless loop such as `while True: pass`. A real board would "
