@@ -5,7 +5,7 @@ Station k (1..6) has MESSAGE_ID1 = 0x100 + 0x10 (k - 1) and RTR ID 0x81 + (k - 1
 from __future__ import annotations
 
 import random
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -33,6 +33,11 @@ def station_ids(station: int) -> dict[str, int]:
     """Station k's constants as the workshop assigns them: MESSAGE_ID1 and the Ex5 RTR ID."""
     _check_station(station, STATIONS)
     return {"MESSAGE_ID1": 0x100 + 0x10 * (station - 1), "RTR_ID": 0x81 + (station - 1)}
+
+
+def station_defines(names: Collection[str], station: int) -> dict[str, int]:
+    """Station k's IDs (see `station_ids`) for a firmware file that assigns `names` at top level."""
+    return {name: value for name, value in station_ids(station).items() if name in names}
 
 
 def pc_monitor_interface() -> None:
@@ -86,7 +91,7 @@ class Classroom:
         names = constants(self.firmware)
         for k, potentiometer in enumerate(potentiometers, start=1):
             board = APP023(bus, f"station{k}", potentiometer=potentiometer)
-            defines = {name: value for name, value in station_ids(k).items() if name in names}
+            defines = station_defines(names, k)
             board.run(load_firmware(self.firmware, defines))
             self.stations[k] = board
         self.monitor: PIC18F8680 | None = None

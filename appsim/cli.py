@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from typing import TextIO
@@ -14,7 +15,7 @@ import can
 
 from appsim.board import APP023
 from appsim.bus import Bus
-from appsim.classroom import EXERCISES, SOLUTIONS, STATIONS, Classroom, station_ids
+from appsim.classroom import EXERCISES, SOLUTIONS, STATIONS, Classroom, station_defines, station_ids
 from appsim.link import BusLink
 from appsim.loader import FirmwareError, constants, load_firmware
 from appsim.monitor import HEADER, LiveTrace, error_counters, summary, write_log
@@ -75,24 +76,30 @@ class Session:
                 raise SystemExit(f"appsim: cannot open the python-can bus interface={args.interface!r} "
                                  f"channel={args.channel!r}: {error}") from None
 
-    def run(self, seconds: float, *, live: bool) -> None:
-        """Run `seconds` of simulated time; linked, paced to the wall clock with the trace shown live."""
-        if self.link is None:
+    def run(self, seconds: float, *, live: bool, real_time: bool = False,
+            pollers: tuple[Callable[[], None], ...] = ()) -> None:
+        """Run `seconds` of simulated time: as fast as it can, or, linked (or `real_time`), paced to the
+        wall clock with `pollers` and the link polled between slices, and the trace shown live if `live`."""
+        if self.link is None and not real_time:
             self._fast(seconds)
             return
         clock = WallClock(self.sim)
-        clock.add_poller(self.link.poll)
+        for poll in pollers:
+            clock.add_poller(poll)
+        if self.link is not None:
+            clock.add_poller(self.link.poll)
+            print(f"linked to {self.link.outside.channel_info}, running in real time for {seconds:g} s "
+                  "(Ctrl-C stops)", file=self.out)
         if live:
             clock.add_poller(lambda: self._show(self.trace.new_lines()))
-        print(f"linked to {self.link.outside.channel_info}, running in real time for {seconds:g} s "
-              "(Ctrl-C stops)", file=self.out)
         try:
             clock.run(seconds)
         except KeyboardInterrupt:
             print("stopped", file=self.out)
         finally:
-            print(self.link.report(), file=self.out)
-            self.link.close()
+            if self.link is not None:
+                print(self.link.report(), file=self.out)
+                self.link.close()
 
     def _fast(self, seconds: float) -> None:
         end = round(seconds * PS_PER_SECOND)
@@ -179,13 +186,9 @@ def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
     """The classroom mid-workshop: station k works on exercise k, so every kind of traffic is on the bus."""
     classroom = Classroom(bus, 6, seed=seed)
     for k in range(1, STATIONS):
-        classroom.join(SOLUTIONS / f"ex{k}.py", k, defines=station_defines(SOLUTIONS / f"ex{k}.py", k))
+        firmware = SOLUTIONS / f"ex{k}.py"
+        classroom.join(firmware, k, defines=station_defines(constants(firmware), k))
     return classroom
-
-
-def station_defines(firmware: Path, station: int) -> dict[str, int]:
-    names = constants(firmware)
-    return {name: value for name, value in station_ids(station).items() if name in names}
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -255,14 +258,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
               f"  open it with: python -m serial.tools.miniterm {usb.url} 19200   (or screen, minicom)\n"
               f"  running the classroom (exercise {args.exercise}) in real time for {args.seconds:g} s; "
               "Ctrl-C stops", file=out)
-        clock = WallClock(session.sim)
-        clock.add_poller(usb.poll)
-        if session.link is not None:
-            clock.add_poller(session.link.poll)
-        try:
-            clock.run(args.seconds)
-        except KeyboardInterrupt:
-            pass
+        session.run(args.seconds, live=False, real_time=True, pollers=(usb.poll,))
         print(f"{len(session.bus.frames())} frames on the bus; {usb.lost_bytes} bytes lost on the USB side",
               file=out)
     return 0

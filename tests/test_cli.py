@@ -86,3 +86,14 @@ def test_check_gives_the_verdict_and_exit_status_a_script_can_use():
     assert "Set RX_Filter0 to MESSAGE_ID1" in starter.stdout
     solution = appsim("check", "ex1", str(KIT / "solutions" / "ex1.py"), "--seed", "3", cwd=KIT)
     assert solution.returncode == 0 and "EX1: 5/5 (seed 3)" in solution.stdout
+
+
+def test_monitor_opens_demo1s_port_and_closes_its_link(capsys):
+    with can.Bus(interface="virtual", channel="cli-monitor") as peer:
+        assert main(["monitor", "--seconds", "0.3", "--transport", "socket",
+                     "--interface", "virtual", "--channel", "cli-monitor"]) == 0
+        seen = list(iter(lambda: peer.recv(timeout=0), None))
+    out = capsys.readouterr().out
+    assert "Demo1 CAN monitor on the USB-CDC port socket://127.0.0.1:" in out
+    assert "link outside (Virtual bus channel cli-monitor):" in out, "the link's report, printed as it closes"
+    assert len(seen) > 5 and {m.arbitration_id for m in seen} >= {0x088, 0x100}
