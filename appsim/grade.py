@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+from appsim.checks.trial import RTR_IDS, STATION_IDS
 from appsim.sandbox import DEFAULT_LIMITS, Limits, RemoteFirmware, Sandbox
 
 EXERCISE_FILES: dict[str, str] = {**{f"ex{n}": f"ex{n}.py" for n in range(1, 7)}, "demo1": "demo1_monitor.py"}
@@ -231,8 +232,8 @@ def station_id(exercise: str, path: Path) -> int | None:
         return None
     values = _top_level_integers(tree)
     rtr_id = values.get("RTR_ID")
-    if exercise == "ex5" and rtr_id is not None and 0x81 <= rtr_id <= 0x86:
-        return 0x100 + 0x10 * (rtr_id - 0x81)
+    if exercise == "ex5" and rtr_id in RTR_IDS:
+        return STATION_IDS[RTR_IDS.index(rtr_id)]
     return values.get("MESSAGE_ID1")
 
 

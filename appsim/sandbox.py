@@ -23,7 +23,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any, ClassVar
 
-from appsim.mcu import PIC18F8680, SFRNames, current_mcu
+from appsim.mcu import PIC18F8680, SFRNames, _firmware_location, current_mcu
 
 NOBODY = 65534
 # Wire format (little-endian; a message is a u32 length, then its bytes). Child to grader: a batch of `W`
@@ -456,13 +456,7 @@ def _address(address: int) -> int:
 
 def _call_site() -> int:
     """Where in the firmware (outside the kit) this access comes from, as one number (see PIC18F8680.read)."""
-    frame: Any = sys._getframe(2)
-    location = []
-    while frame is not None:
-        if not frame.f_globals.get("__name__", "").startswith("appsim."):
-            location.append((id(frame.f_code), frame.f_lasti))
-        frame = frame.f_back
-    return hash(tuple(location))
+    return hash(_firmware_location())
 
 
 def _send_all(fd: int, data: bytes) -> None:

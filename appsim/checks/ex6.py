@@ -14,6 +14,7 @@ from appsim.checks.ex3 import master_frames
 from appsim.checks.judging import data_frames, why_silent
 from appsim.checks.trial import MS, Trial, count, describe, hex_id, listing, ms, took
 from appsim.checks.verdict import CheckResult
+from appsim.classroom import station_ids
 from appsim.firmware import Delay1KTCYx
 
 ANSWERS = "answers an RTR for MESSAGE_ID1 with its A/D"
@@ -50,8 +51,7 @@ def test_node(own_id: int, other_id: int):
 
 def run(trial: Trial) -> list[CheckResult]:
     room = trial.classroom(6, stations=2)
-    other = next(board for k, board in room.stations.items() if k != trial.station)
-    other_id = 0x100 + 0x10 * (int(other.name.removeprefix("station")) - 1)
+    other_id = next(station_ids(k)["MESSAGE_ID1"] for k in room.stations if k != trial.station)
     trial.node("tester", test_node(trial.own_id, other_id))
     trial.run(SECONDS)
     joined = master_frames(trial)[0].end_ps               # Listen-only until then, as in Ex4
