@@ -616,7 +616,7 @@ class _AuditPolicy:
             positions, writes = self.PATHS[event]
             for position in positions:
                 if position < len(args):
-                    self.check(args[position], writes, event.replace("os.", "os."))
+                    self.check(args[position], writes, f"{event}() on")
 
     def check(self, path: Any, writes: bool, what: str) -> None:
         if path is None:

@@ -85,9 +85,6 @@ class Simulator:
         """Run `callback` `delay` picoseconds after the caller's present (see `time`)."""
         return self.call_at(self.time() + delay, callback)
 
-    def next_event_time(self) -> float:
-        return self._events[0][0] if self._events else float("inf")
-
     # -------------------------------------------------------------- processes
     def start(self, name: str, main: Callable[[], Any], *, context: Any = None) -> "Process":
         """Start firmware `main` as a process at the current time; `context` is what it runs on."""

@@ -3,7 +3,6 @@ and with `appsim grade` (each submission's firmware sandboxed in its own process
 """
 from __future__ import annotations
 
-import importlib.util
 import shutil
 import subprocess
 import sys
@@ -12,13 +11,6 @@ import time
 from pathlib import Path
 
 from appsim.classroom import EXERCISES, SOLUTIONS
-
-NOT_YET = "not available yet"
-
-
-def checks_available() -> bool:
-    return importlib.util.find_spec("appsim.checks") is not None
-
 
 def one_submission_s(seed: int = 1) -> float:
     """Wall seconds to check the solutions of Ex1..Ex6 as one student's submission (every check must pass)."""
