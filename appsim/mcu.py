@@ -133,6 +133,7 @@ class PIC18F8680(SFRNames):
         """Start firmware `main` on this MCU (after a reset, as programming the chip would)."""
         if self.process is not None and not self.process.dead:
             self.process.stop()
+        _IS_KIT.clear()          # a cache: new firmware brings new code objects (a grader loads thousands)
         self.process = self.sim.start(self.name, main, context=self)
         return self.process
 
