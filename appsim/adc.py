@@ -7,7 +7,7 @@ from __future__ import annotations
 import numbers
 from typing import TypeGuard
 
-from appsim.mcu import CALL_CYCLES, PIC18F8680, current_mcu
+from appsim.mcu import PIC18F8680, library_call
 from appsim.sim import PS_PER_SECOND, Timer
 
 _ADRESH, _ADRESL, _ADCON0, _ADCON1, _ADCON2 = 0xFC4, 0xFC3, 0xFC2, 0xFC1, 0xFC0
@@ -218,12 +218,6 @@ ADC_CH15 = 0b11111111
 _CHANNEL_MASKS = frozenset(0b10000111 | (n << 3) for n in range(CHANNELS))
 
 
-def _mcu() -> PIC18F8680:
-    mcu = current_mcu()
-    mcu.spend_cycles(CALL_CYCLES)
-    return mcu
-
-
 def _byte(name: str, value: int) -> int:
     if not _is_int(value) or not 0 <= value <= 0xFF:
         raise ValueError(f"{name} is one byte of ADC_... masks combined with &; got {value!r}")
@@ -238,7 +232,7 @@ def OpenADC(config: int, config2: int) -> None:
     """
     config, config2 = _byte("config", config), _byte("config2", config2)
     channel = (config2 >> 1) & 0b00111100
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("ADCON0", channel)
     mcu.write_name("ADCON1", ((config2 & 0b11) << 4) | (config & 0x0F))
     mcu.write_name("ADCON2", (config & _ADFM) | ((config >> 4) & 0x07))
@@ -249,30 +243,30 @@ def SetChanADC(channel: int) -> None:
     """Select the input to convert: `channel` is one of ADC_CH0..ADC_CH15."""
     if not _is_int(channel) or channel not in _CHANNEL_MASKS:
         raise ValueError(f"SetChanADC takes ADC_CH0..ADC_CH15 (C18's masks), not a channel number; got {channel!r}")
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("ADCON0", (mcu.read_name("ADCON0") & 0b11000011) | ((channel >> 1) & 0b00111100))
 
 
 def ConvertADC() -> None:
     """Start a conversion: ADCON0bits.GO = 1."""
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("ADCON0", mcu.read_name("ADCON0") | _GO_DONE)
 
 
 def BusyADC() -> bool:
     """Whether a conversion is in progress (ADCON0bits.GO_DONE)."""
-    return bool(_mcu().read_name("ADCON0") & _GO_DONE)
+    return bool(library_call().read_name("ADCON0") & _GO_DONE)
 
 
 def ReadADC() -> int:
     """The result as ADRESH:ADRESL (0..1023 when right-justified)."""
-    mcu = _mcu()
+    mcu = library_call()
     return (mcu.read_name("ADRESH") << 8) | mcu.read_name("ADRESL")
 
 
 def CloseADC() -> None:
     """Switch the A/D off (ADCON0bits.ADON = 0), aborting a conversion in progress."""
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("ADCON0", mcu.read_name("ADCON0") & ~_ADON)
 
 

@@ -11,7 +11,7 @@ from typing import NamedTuple
 
 from appsim.ecan import registers as R
 from appsim.ecan.acceptance import pack_id, unpack_id
-from appsim.mcu import CALL_CYCLES, PIC18F8680, current_mcu
+from appsim.mcu import PIC18F8680, library_call
 
 TRUE, FALSE = True, False
 
@@ -139,12 +139,6 @@ class CANMessage(NamedTuple):
 NO_MESSAGE = CANMessage(0, b"", 0, -1)
 
 
-def _mcu() -> PIC18F8680:
-    mcu = current_mcu()
-    mcu.spend_cycles(CALL_CYCLES)
-    return mcu
-
-
 def _window(mcu: PIC18F8680, win: int) -> None:
     """CANCON.WIN = win, by read-modify-write as the library does (`CANCON &= 0b11110001; |= ...`)."""
     mcu.write(_CANCON, (mcu.read(_CANCON) & 0b11110001) | (win << 1))
@@ -181,14 +175,14 @@ def _check_mode(mode: int) -> None:
 def CANSetOperationModeNoWait(mode: int) -> None:
     """CANCON = mode: requests the mode (and clears ABAT and WIN); does not wait."""
     _check_mode(mode)
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write(_CANCON, mode)
 
 
 def CANSetOperationMode(mode: int) -> None:
     """Request `mode` and wait until CANSTAT.OPMODE shows it (the module waits for the bus to be idle)."""
     _check_mode(mode)
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write(_CANCON, mode)
     while (mcu.read(_CANSTAT) & CAN_OP_MODE.CAN_OP_MODE_BITS) != mode:
         pass
@@ -196,7 +190,7 @@ def CANSetOperationMode(mode: int) -> None:
 
 def CANGetOperationMode() -> int:
     """The requested mode, CANCON & 0xE0 (not CANSTAT: the mode asked for, not the mode reached)."""
-    return _mcu().read(_CANCON) & CAN_OP_MODE.CAN_OP_MODE_BITS
+    return library_call().read(_CANCON) & CAN_OP_MODE.CAN_OP_MODE_BITS
 
 
 def CANSetBaudRate(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
@@ -208,7 +202,7 @@ def CANSetBaudRate(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
     _check_range("PHSEG1", PHSEG1, 1, 8, wrap)
     _check_range("PHSEG2", PHSEG2, 1, 8, wrap)
     _check_range("PROPSEG", PROPSEG, 1, 8, wrap)
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write(_BRGCON1, ((SJW - 1) << 6) | (BRP - 1))
     brgcon2 = ((PHSEG1 - 1) << 3) | (PROPSEG - 1)
     if not flags & CAN_CONFIG_FLAGS.CAN_CONFIG_SAMPLE_BIT:
@@ -241,7 +235,7 @@ def CANSetMask(code: int, val: int, type: int) -> None:
         raise AN738Error(f"mask code {code!r} is not CAN_MASK_B1 or CAN_MASK_B2")
     extended = not type & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_TYPE_BIT
     _check_id(val, extended, "mask")
-    _write_id(_mcu(), _RXM_SIDH[code], val, extended)
+    _write_id(library_call(), _RXM_SIDH[code], val, extended)
 
 
 def CANSetFilter(code: int, val: int, type: int) -> None:
@@ -253,7 +247,7 @@ def CANSetFilter(code: int, val: int, type: int) -> None:
         raise AN738Error(f"filter code {code!r} is not one CAN_FILTER value (CAN_FILTER_B1_F1 .. CAN_FILTER_B2_F4)")
     extended = not type & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_TYPE_BIT
     _check_id(val, extended, "filter")
-    _write_id(_mcu(), _RXF_SIDH[code], val, extended)
+    _write_id(library_call(), _RXF_SIDH[code], val, extended)
 
 
 def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
@@ -266,7 +260,7 @@ def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
     """
     CANSetOperationMode(CAN_OP_MODE.CAN_OP_MODE_CONFIG)
     CANSetBaudRate(SJW, BRP, PHSEG1, PHSEG2, PROPSEG, config)
-    mcu = _mcu()
+    mcu = library_call()
     rxbcon = config & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_BITS
     mcu.write(_RXB0CON, rxbcon)
     if (config & CAN_CONFIG_FLAGS.CAN_CONFIG_DBL_BUFFER_BIT) == CAN_CONFIG_FLAGS.CAN_CONFIG_DBL_BUFFER_ON:
@@ -290,7 +284,7 @@ def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
 
 def CANIsTxReady() -> bool:
     """TRUE if at least one of TXB0..TXB2 has TXREQ = 0."""
-    mcu = _mcu()
+    mcu = library_call()
     for con in _TXB_CON:
         if not mcu.read(con) & R.TXREQ:
             return True
@@ -314,7 +308,7 @@ def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
     if len(data) < DataLen and not remote:
         raise AN738Error(f"DataLen is {DataLen} but only {len(data)} data bytes were given: the C "
                          "library would send whatever memory follows your array")
-    mcu = _mcu()
+    mcu = library_call()
     for con, win in _TX_WINDOWS:
         if not mcu.read(con) & R.TXREQ:
             break
@@ -333,7 +327,7 @@ def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
 
 def CANAbortAll() -> None:
     """CANCON.ABAT = 1: abort every pending transmission."""
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write(_CANCON, mcu.read(_CANCON) | R.ABAT)
 
 
@@ -341,7 +335,7 @@ def CANAbortAll() -> None:
 
 def CANIsRxReady() -> bool:
     """TRUE if RXB0 or RXB1 holds a message (RXFUL): one that passed the masks and filters."""
-    mcu = _mcu()
+    mcu = library_call()
     return bool(mcu.read(_RXB0CON) & R.RXFUL or mcu.read(_RXB1CON) & R.RXFUL)
 
 
@@ -352,7 +346,7 @@ def CANReceiveMessage() -> CANMessage:
     Quirks kept from the library: for RXB0 the filter number is reported only when RXB0DBEN is set,
     and then `&= 0x01` also wipes CAN_RX_OVERFLOW; `length` is the raw DLC.
     """
-    mcu = _mcu()
+    mcu = library_call()
     flags = 0
     if mcu.read(_RXB0CON) & R.RXFUL:
         con_address = _RXB0CON
@@ -398,25 +392,25 @@ def CANReceiveMessage() -> CANMessage:
 
 def CANIsBusOff() -> bool:
     """COMSTAT.TXBO: the transmit error counter passed 255."""
-    return bool(_mcu().read(_COMSTAT) & R.TXBO)
+    return bool(library_call().read(_COMSTAT) & R.TXBO)
 
 
 def CANIsTxPassive() -> bool:
     """COMSTAT.TXBP: the transmit error counter passed 127."""
-    return bool(_mcu().read(_COMSTAT) & R.TXBP)
+    return bool(library_call().read(_COMSTAT) & R.TXBP)
 
 
 def CANIsRxPassive() -> bool:
     """COMSTAT.RXBP: the receive error counter passed 127."""
-    return bool(_mcu().read(_COMSTAT) & R.RXBP)
+    return bool(library_call().read(_COMSTAT) & R.RXBP)
 
 
 def CANGetTxErrorCount() -> int:
-    return _mcu().read(_TXERRCNT)
+    return library_call().read(_TXERRCNT)
 
 
 def CANGetRxErrorCount() -> int:
-    return _mcu().read(_RXERRCNT)
+    return library_call().read(_RXERRCNT)
 
 
 __all__ = (

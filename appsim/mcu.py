@@ -55,6 +55,11 @@ class SFRNames:
     def write_name(self, name: str, value: int) -> None:
         self.write(self.address_of(name), value)
 
+    def set_bits(self, name: str, mask: int, on: bool) -> None:
+        """Set (or clear) the `mask` bits of a register, read-modify-write, as `BSF`/`BCF` on it would."""
+        value = self.read_name(name)
+        self.write_name(name, value | mask if on else value & ~mask)
+
 
 class PIC18F8680(SFRNames):
     """One microcontroller on the simulated clock, with its ECAN module mapped at F00h..F77h, FA3h..FA5h."""
@@ -168,3 +173,10 @@ def current_mcu() -> PIC18F8680:
     raise NotOnABoard(
         "this is firmware: it runs on a simulated board, from main(). "
         "Start it with a board's run(main) (or `appsim board FILE`), not by calling it directly.")
+
+
+def library_call() -> PIC18F8680:
+    """The MCU a C18 or AN738 library function acts on, after the CALL/RETURN and argument passing it costs."""
+    mcu = current_mcu()
+    mcu.spend_cycles(CALL_CYCLES)
+    return mcu

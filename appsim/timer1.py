@@ -5,7 +5,7 @@ The count is computed from simulated time; one event per overflow sets PIR1.TMR1
 from __future__ import annotations
 
 from appsim.interrupts import TMR1IF, PeripheralInterrupts
-from appsim.mcu import CALL_CYCLES, PIC18F8680, current_mcu
+from appsim.mcu import PIC18F8680, library_call
 from appsim.sim import Timer
 
 _TMR1H, _TMR1L, _T1CON = 0xFCF, 0xFCE, 0xFCD
@@ -154,17 +154,6 @@ T1_SOURCE_EXT = 0b11111111      # TMR1CS = 1: does not count on the APP023 (see 
 T1_SOURCE_INT = 0b11111101
 
 
-def _mcu() -> PIC18F8680:
-    mcu = current_mcu()
-    mcu.spend_cycles(CALL_CYCLES)
-    return mcu
-
-
-def _set_bit(mcu: PIC18F8680, register: str, mask: int, on: bool) -> None:
-    value = mcu.read_name(register)
-    mcu.write_name(register, value | mask if on else value & ~mask)
-
-
 def OpenTimer1(config: int) -> None:
     """Configure Timer1, clear it and PIR1.TMR1IF, and start it, as C18's OpenTimer1 does.
 
@@ -172,19 +161,19 @@ def OpenTimer1(config: int) -> None:
     """
     if not isinstance(config, int) or isinstance(config, bool) or not 0 <= config <= 0xFF:
         raise ValueError(f"OpenTimer1 takes one byte of TIMER_INT_... & T1_... masks combined with &; got {config!r}")
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("T1CON", config & 0x7E)
-    _set_bit(mcu, "T1CON", _RD16, bool(config & 0x40))
+    mcu.set_bits("T1CON", _RD16, bool(config & 0x40))
     mcu.write_name("TMR1H", 0)
     mcu.write_name("TMR1L", 0)
-    _set_bit(mcu, "PIR1", 1 << TMR1IF, False)
-    _set_bit(mcu, "PIE1", 1 << TMR1IF, bool(config & 0x80))
-    _set_bit(mcu, "T1CON", _TMR1ON, True)
+    mcu.set_bits("PIR1", 1 << TMR1IF, False)
+    mcu.set_bits("PIE1", 1 << TMR1IF, bool(config & 0x80))
+    mcu.set_bits("T1CON", _TMR1ON, True)
 
 
 def ReadTimer1() -> int:
     """TMR1H:TMR1L, reading TMR1L first (so that RD16 = 1 gives a consistent 16-bit value)."""
-    mcu = _mcu()
+    mcu = library_call()
     low = mcu.read_name("TMR1L")
     return (mcu.read_name("TMR1H") << 8) | low
 
@@ -193,16 +182,16 @@ def WriteTimer1(value: int) -> None:
     """Load TMR1H:TMR1L with `value` (0..65535), high byte first."""
     if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= 0xFFFF:
         raise ValueError(f"Timer1 is a 16-bit counter: WriteTimer1 takes 0..65535; got {value!r}")
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("TMR1H", value >> 8)
     mcu.write_name("TMR1L", value & 0xFF)
 
 
 def CloseTimer1() -> None:
     """Stop Timer1 (TMR1ON = 0) and clear PIE1.TMR1IE."""
-    mcu = _mcu()
-    _set_bit(mcu, "T1CON", _TMR1ON, False)
-    _set_bit(mcu, "PIE1", 1 << TMR1IF, False)
+    mcu = library_call()
+    mcu.set_bits("T1CON", _TMR1ON, False)
+    mcu.set_bits("PIE1", 1 << TMR1IF, False)
 
 
 # What firmware sees (`from appsim.firmware import *`); the board side is Timer1 and attach_timer1.

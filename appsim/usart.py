@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 from appsim.dsw2 import CON9, DSW2, USB
 from appsim.interrupts import RCIF, TXIF, PeripheralInterrupts
-from appsim.mcu import CALL_CYCLES, PIC18F8680, current_mcu
+from appsim.mcu import PIC18F8680, library_call
 from appsim.sim import PS_PER_SECOND, Timer
 
 _TXSTA, _RCSTA, _TXREG, _RCREG, _SPBRG = 0xFAC, 0xFAB, 0xFAD, 0xFAE, 0xFAF
@@ -287,17 +287,6 @@ USART_SYNCH_MODE = 0b11111111
 USART_ASYNCH_MODE = 0b11111110
 
 
-def _mcu() -> PIC18F8680:
-    mcu = current_mcu()
-    mcu.spend_cycles(CALL_CYCLES)
-    return mcu
-
-
-def _set_bits(mcu: PIC18F8680, register: str, mask: int, on: bool) -> None:
-    value = mcu.read_name(register)
-    mcu.write_name(register, value | mask if on else value & ~mask)
-
-
 def _byte(function: str, value: int | str) -> int:
     code = ord(value) if isinstance(value, str) and len(value) == 1 else value
     if not isinstance(code, int) or isinstance(code, bool) or not 0 <= code <= 0xFF:
@@ -317,37 +306,37 @@ def OpenUSART(config: int, spbrg: int) -> None:
     if not isinstance(spbrg, int) or isinstance(spbrg, bool) or not 0 <= spbrg <= 0xFFFF:
         raise ValueError(f"OpenUSART's spbrg is the baud rate generator value, 0..65535; got {spbrg!r} "
                          "(129 with USART_BRGH_HIGH gives 19200 baud at 40 MHz)")
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("TXSTA", 0)
     mcu.write_name("RCSTA", 0)
     if config & 0x01:
-        _set_bits(mcu, "TXSTA", _SYNC, True)
+        mcu.set_bits("TXSTA", _SYNC, True)
     if config & 0x02:
-        _set_bits(mcu, "TXSTA", _TX9, True)
-        _set_bits(mcu, "RCSTA", _RX9, True)
+        mcu.set_bits("TXSTA", _TX9, True)
+        mcu.set_bits("RCSTA", _RX9, True)
     if config & 0x04:
-        _set_bits(mcu, "TXSTA", _CSRC, True)
-    _set_bits(mcu, "RCSTA", _CREN if config & 0x08 else _SREN, True)
-    _set_bits(mcu, "TXSTA", _BRGH, bool(config & 0x10))
-    _set_bits(mcu, "PIR1", 1 << TXIF, False)
-    _set_bits(mcu, "PIE1", 1 << RCIF, bool(config & 0x40))
-    _set_bits(mcu, "PIR1", 1 << RCIF, False)
-    _set_bits(mcu, "PIE1", 1 << TXIF, bool(config & 0x80))
+        mcu.set_bits("TXSTA", _CSRC, True)
+    mcu.set_bits("RCSTA", _CREN if config & 0x08 else _SREN, True)
+    mcu.set_bits("TXSTA", _BRGH, bool(config & 0x10))
+    mcu.set_bits("PIR1", 1 << TXIF, False)
+    mcu.set_bits("PIE1", 1 << RCIF, bool(config & 0x40))
+    mcu.set_bits("PIR1", 1 << RCIF, False)
+    mcu.set_bits("PIE1", 1 << TXIF, bool(config & 0x80))
     mcu.write_name("SPBRG", spbrg & 0xFF)
     mcu.write_name("SPBRGH", spbrg >> 8)
-    _set_bits(mcu, "TXSTA", _TXEN, True)
-    _set_bits(mcu, "RCSTA", _SPEN, True)
+    mcu.set_bits("TXSTA", _TXEN, True)
+    mcu.set_bits("RCSTA", _SPEN, True)
 
 
 def BusyUSART() -> bool:
     """Whether the transmitter is still shifting a byte out (TXSTA.TRMT = 0), as C18 tests it."""
-    return not _mcu().read_name("TXSTA") & _TRMT
+    return not library_call().read_name("TXSTA") & _TRMT
 
 
 def WriteUSART(data: int | str) -> None:
     """Put one byte in TXREG (without waiting: call BusyUSART first, as putsUSART does)."""
     code = _byte("WriteUSART", data)
-    _mcu().write_name("TXREG", code)
+    library_call().write_name("TXREG", code)
 
 
 putcUSART = WriteUSART
@@ -355,12 +344,12 @@ putcUSART = WriteUSART
 
 def DataRdyUSART() -> bool:
     """Whether a received byte is waiting (PIR1.RCIF)."""
-    return bool(_mcu().read_name("PIR1") & (1 << RCIF))
+    return bool(library_call().read_name("PIR1") & (1 << RCIF))
 
 
 def ReadUSART() -> int:
     """The next received byte from RCREG (C18 also notes FERR/OERR in USART_Status; read RCSTAbits for them)."""
-    mcu = _mcu()
+    mcu = library_call()
     mcu.read_name("RCSTA")
     return mcu.read_name("RCREG")
 
@@ -397,9 +386,9 @@ def putrsUSART(text: str | bytes) -> None:
 
 def CloseUSART() -> None:
     """Disable the receiver and the transmitter and their interrupt enables, as C18's CloseUSART does."""
-    mcu = _mcu()
+    mcu = library_call()
     mcu.write_name("RCSTA", mcu.read_name("RCSTA") & 0b01001111)
-    _set_bits(mcu, "TXSTA", _TXEN, False)
+    mcu.set_bits("TXSTA", _TXEN, False)
     mcu.write_name("PIE1", mcu.read_name("PIE1") & 0b11001111)
 
 
