@@ -252,12 +252,6 @@ class Trial:
             return f"{buffer}CON.RXM = 11: {buffer} takes every frame, masks and filters are not used"
         return f"{mask} = {hex_id(sid(ecan, mask))}, {values}, {buffer}CON.RXM = {rxm:02b}"
 
-    def passes(self, buffer: str, can_id: int) -> bool:
-        """Whether a standard frame with `can_id` passes the buffer's mask and filters now (RXM aside)."""
-        ecan = self.board.ecan
-        mask, filters = ("RXM0", ("RXF0", "RXF1")) if buffer == "RXB0" else ("RXM1", ("RXF2", "RXF3", "RXF4", "RXF5"))
-        return any(((can_id ^ sid(ecan, f)) & sid(ecan, mask)) == 0 for f in filters)
-
     def lcd(self, line: int) -> str:
         return self.board.glcd.line(line)
 
