@@ -290,6 +290,8 @@ def worker() -> None:
 
 def _graded(submissions: Sequence[Submission], seed: int, limits: Limits, jobs: int) -> Iterator[dict[str, Any]]:
     """Records as the workers finish them (in no fixed order)."""
+    if not submissions:                  # everything was graded before (a resumed run): start no worker
+        return
     waiting = deque(submissions)
     workers = [subprocess.Popen([sys.executable, "-c", "from appsim.grade import worker; worker()"],
                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, encoding="utf-8")

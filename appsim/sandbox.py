@@ -100,6 +100,9 @@ class Sandbox:
         try:
             reply = self._request({"op": "run", "firmware": str(firmware), "directory": str(directory),
                                    "time_s": limits.time_s, "memory_mb": limits.memory_mb}, [theirs.fileno()])
+        except BaseException:
+            ours.close()
+            raise
         finally:
             theirs.close()
         return reply["pid"], ours
