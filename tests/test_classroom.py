@@ -7,27 +7,14 @@ import time
 from pathlib import Path
 
 import pytest
+from workshop import KIT, MS, classroom, payload, sent
 
 from appsim.bus import Bus
 from appsim.classroom import Classroom, station_ids
 from appsim.loader import FirmwareError, constants, load_firmware
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import Simulator
 
-KIT = Path(__file__).resolve().parent.parent
-MS = PS_PER_SECOND // 1000
 STATION_IDS = [0x100, 0x110, 0x120, 0x130, 0x140, 0x150]
-
-
-def payload(potentiometer: int) -> bytes:
-    return bytes([1, 2, 3, potentiometer >> 8, potentiometer & 0xFF])
-
-
-def classroom(exercise: int, seed: int = 202, **options) -> Classroom:
-    return Classroom(Bus(Simulator(), 125_000), exercise, seed=seed, **options)
-
-
-def sent(room: Classroom, sender: str, *, remote: bool | None = None):
-    return [e for e in room.bus.frames() if e.sender == sender and (remote is None or e.frame.remote == remote)]
 
 
 # ------------------------------------------------------------------ the master console

@@ -3,30 +3,14 @@ from __future__ import annotations
 
 import itertools
 import random
-from pathlib import Path
 
 import pytest
+from workshop import KIT, MS, classroom, payload, sent
 
-from appsim.bus import Bus
 from appsim.classroom import Classroom
 from appsim.ecan.controller import Mode
-from appsim.sim import PS_PER_SECOND, Simulator
 
-KIT = Path(__file__).resolve().parent.parent
-MS = PS_PER_SECOND // 1000
 TIMER1_PERIOD_PS = 65536 * 8 * 100_000        # 1:8 of Fosc/4 at 40 MHz: 52.4288 ms
-
-
-def payload(potentiometer: int) -> bytes:
-    return bytes([1, 2, 3, potentiometer >> 8, potentiometer & 0xFF])
-
-
-def classroom(exercise: int, seed: int = 202, **options) -> Classroom:
-    return Classroom(Bus(Simulator(), 125_000), exercise, seed=seed, **options)
-
-
-def sent(room: Classroom, sender: str, *, remote: bool | None = None):
-    return [e for e in room.bus.frames() if e.sender == sender and (remote is None or e.frame.remote == remote)]
 
 
 def station_names(room: Classroom) -> set[str]:

@@ -1,0 +1,26 @@
+"""Test helpers for whole classrooms: build one, the payload a board sends, the frames a node sent."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from appsim.bus import Bus, BusEvent
+from appsim.classroom import Classroom
+from appsim.sim import PS_PER_SECOND, Simulator
+
+KIT = Path(__file__).resolve().parent.parent
+MS = PS_PER_SECOND // 1000
+
+
+def payload(potentiometer: int) -> bytes:
+    """`01 02 03 ADRESH ADRESL` for a potentiometer value (right-justified 10-bit A/D)."""
+    return bytes([1, 2, 3, potentiometer >> 8, potentiometer & 0xFF])
+
+
+def classroom(exercise: int, seed: int = 202, **options) -> Classroom:
+    """The workshop's classroom at `exercise` on a fresh 125 kbit/s bus."""
+    return Classroom(Bus(Simulator(), 125_000), exercise, seed=seed, **options)
+
+
+def sent(room: Classroom, sender: str, *, remote: bool | None = None) -> list[BusEvent]:
+    """The frames `sender` put through on the bus (only remote or only data frames if `remote` is given)."""
+    return [e for e in room.bus.frames() if e.sender == sender and (remote is None or e.frame.remote == remote)]
