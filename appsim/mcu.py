@@ -75,10 +75,13 @@ class PIC18F8680(SFRNames):
         self._devices: dict[int, Peripheral] = {}
         self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
         self.version = 0
-        self._seen: dict[int, int] = {}
-        self._stale_sites: set[tuple[int, object]] = set()  # (address, firmware location) polled at `version`
-        self._stale_version = -1
+        # This turn of a polling loop: what it read since `version` last changed, and from where.
+        self._turn_version = -1
+        self._turn_reads: set[int] = set()
+        self._turn_sites: set[tuple[int, object]] = set()    # (address, firmware location)
+        self._parked_on: dict[int, int] | None = None       # what a parked loop read (None: wake on any change)
         self.time_varying: set[int] = set()
+        self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
         self.process: Process | None = None
         self.on_changed: list[Callable[[], None]] = []
 
@@ -96,19 +99,34 @@ class PIC18F8680(SFRNames):
             process.local_time += self._access_ps     # process.spend, its common case inline
             if process.local_time > process.horizon:
                 process.spend(0)
-            version = self.version          # after spend: other firmware and events may have run
-            if self._seen.get(address) == version and address not in self.time_varying:
-                if self._stale_version != version:
-                    self._stale_sites.clear()
-                    self._stale_version = version
+            if self._turn_version != self.version:      # after spend: other firmware and events may have run
+                self._new_turn()
+            elif address in self._turn_reads and address not in self.time_varying:
                 site = (address, _firmware_location() if site is None else site)
-                if site in self._stale_sites:
-                    process.park()      # a polling loop: nothing can differ until a peripheral event
+                if site in self._turn_sites:
+                    self._park(process)     # a polling loop: nothing can differ until a peripheral event
+                    self._new_turn()
                 else:
-                    self._stale_sites.add(site)
-            self._seen[address] = self.version
+                    self._turn_sites.add(site)
+            self._turn_reads.add(address)
+        return self._peek(address)
+
+    def _peek(self, address: int) -> int:
         device = self._devices.get(address)
         return device.read(address) if device is not None else 0
+
+    def _new_turn(self) -> None:
+        self._turn_version = self.version
+        self._turn_reads = set()
+        self._turn_sites = set()
+
+    def _park(self, process: Process) -> None:
+        """Park a polling loop, remembering what it read: a change that leaves all of that as it was
+        would only make it turn once more, see the same, and park again."""
+        reads = self._turn_reads
+        pure = reads.isdisjoint(self.time_varying) and reads.isdisjoint(self.read_side_effects)
+        self._parked_on = {address: self._peek(address) for address in reads} if pure else None
+        process.park()
 
     def write(self, address: int, value: int) -> None:
         process = self.process
@@ -129,10 +147,15 @@ class PIC18F8680(SFRNames):
     def changed(self) -> None:
         """A peripheral changed state the firmware can see: wake a parked firmware."""
         self.version += 1
-        if self.process is not None:
-            self.process.wake()
+        process = self.process
+        if process is not None and process.parked and self._loop_would_see_a_change():
+            process.wake()
         for callback in self.on_changed:
             callback()
+
+    def _loop_would_see_a_change(self) -> bool:
+        parked_on = self._parked_on
+        return parked_on is None or any(self._peek(address) != value for address, value in parked_on.items())
 
     def run(self, main: Callable[[], Any]) -> Process:
         """Start firmware `main` on this MCU (after a reset, as programming the chip would)."""

@@ -126,6 +126,7 @@ class USART:
         self.con9 = SerialEnd(self, CON9, "CON9 RS-232")
         interrupts.provide(TXIF, lambda: bool(self._txsta & _TXEN) and self._txreg is None)
         interrupts.provide(RCIF, lambda: bool(self._fifo))
+        mcu.read_side_effects.add(_RCREG)
 
     # -------------------------------------------------------------- timing
     def bit_ps(self) -> int:

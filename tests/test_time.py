@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from appsim.board import APP023
 from appsim.firmware import *  # noqa: F403
 from appsim.sim import PS_PER_SECOND
 
@@ -57,6 +58,32 @@ def test_a_firmware_busy_waiting_one_second_for_a_frame_runs_its_loop_a_handful_
     assert (message.id, bytes(message.data[:message.length])) == (0x100, b"\x01\x02\x03")
     assert count < 10, f"the polling loop ran {count} times: it should park until the frame arrives"
     print(f"1.1 s simulated with a 1 s busy-wait: {wall * 1e3:.1f} ms wall, {count} loop turns")
+
+
+def test_a_parked_loop_sleeps_through_changes_it_does_not_read(world):
+    """Timer1 overflows 150 times a second and sets TMR1IF in PIR1; a loop polling only CANIsRxReady()
+    reads RXB0CON and RXB1CON, which stay as they were, so it stays parked until the frame comes."""
+    turns, overflows = [], []
+
+    def waiter():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_1 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)
+        count = 0
+        while not CANIsRxReady():
+            count += 1
+        turns.append(count)
+        overflows.append(PIR1bits.TMR1IF)
+
+    def sender():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        Delay10KTCYx(250)                           # 250 ms: about 38 Timer1 overflows at 1:1
+        CANSendMessage(0x100, [1], 1, CAN_TX_STD_FRAME)
+
+    APP023(world.bus, "waiter").run(waiter)
+    APP023(world.bus, "sender").run(sender)
+    world.run(0.3)
+    assert overflows == [1], "Timer1 did overflow while the loop waited"
+    assert turns and turns[0] < 10, f"the loop turned {turns} times: overflows it never reads woke it"
 
 
 def test_seven_node_trace_is_identical_in_separate_processes_even_under_load():
