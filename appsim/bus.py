@@ -122,9 +122,11 @@ class _BoardPort(_Port):
         self.ecan.transmission_failed(buffer, tec_increment=tec_increment)
 
     def receive(self, frame: CanFrame) -> str:
-        reception = str(self.ecan.frame_received(frame))
-        self.mcu.changed()
-        return reception
+        rec = self.ecan.rec
+        reception = self.ecan.frame_received(frame)
+        if reception.filter is not None or self.ecan.rec != rec:    # a rejected frame changes nothing else
+            self.mcu.changed()
+        return str(reception)
 
     def receive_error(self, rec_increment: int) -> None:
         self.ecan.receive_error(rec_increment=rec_increment)
