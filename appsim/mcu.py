@@ -75,10 +75,13 @@ class PIC18F8680(SFRNames):
         self._devices: dict[int, Peripheral] = {}
         self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
         self.version = 0
-        # This turn of a polling loop: what it read since `version` last changed, and from where.
-        self._turn_version = -1
-        self._turn_reads: set[int] = set()
-        self._turn_sites: set[tuple[int, object]] = set()    # (address, firmware location)
+        self._seen: dict[int, int] = {}                 # address -> `version` when the firmware last read it
+        # What a polling loop reads again at `_polled_version`: values, (address, firmware location), and
+        # whether they tell all (no time-varying register, none whose read has a side effect).
+        self._polled_version = -1
+        self._polled: dict[int, int] = {}
+        self._polled_sites: set[tuple[int, object]] = set()
+        self._polled_pure = True
         self._parked_on: dict[int, int] | None = None       # what a parked loop read (None: wake on any change)
         self.time_varying: set[int] = set()
         self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
@@ -94,38 +97,36 @@ class PIC18F8680(SFRNames):
     # -------------------------------------------------------------- firmware access
     def read(self, address: int, site: object = None) -> int:
         """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox)."""
+        device = self._devices.get(address)
         process = self.process
         if process is not None and _getcurrent() is process:
             process.local_time += self._access_ps     # process.spend, its common case inline
             if process.local_time > process.horizon:
                 process.spend(0)
-            if self._turn_version != self.version:      # after spend: other firmware and events may have run
-                self._new_turn()
-            elif address in self._turn_reads and address not in self.time_varying:
-                site = (address, _firmware_location() if site is None else site)
-                if site in self._turn_sites:
-                    self._park(process)     # a polling loop: nothing can differ until a peripheral event
-                    self._new_turn()
-                else:
-                    self._turn_sites.add(site)
-            self._turn_reads.add(address)
-        return self._peek(address)
-
-    def _peek(self, address: int) -> int:
-        device = self._devices.get(address)
+            if self._seen.get(address) == self.version:     # after spend: other firmware and events may have run
+                self._read_again(process, address, site)
+                value = self._polled[address] = device.read(address) if device is not None else 0
+                self._seen[address] = self.version
+                return value
+            self._seen[address] = self.version
         return device.read(address) if device is not None else 0
 
-    def _new_turn(self) -> None:
-        self._turn_version = self.version
-        self._turn_reads = set()
-        self._turn_sites = set()
-
-    def _park(self, process: Process) -> None:
-        """Park a polling loop, remembering what it read: a change that leaves all of that as it was
-        would only make it turn once more, see the same, and park again."""
-        reads = self._turn_reads
-        pure = reads.isdisjoint(self.time_varying) and reads.isdisjoint(self.read_side_effects)
-        self._parked_on = {address: self._peek(address) for address in reads} if pure else None
+    def _read_again(self, process: Process, address: int, site: object) -> None:
+        """A register read again with nothing changed since: from the same place in the firmware, that
+        is a polling loop, parked until a change that it would see."""
+        if self._polled_version != self.version:
+            self._polled_version = self.version
+            self._polled, self._polled_sites, self._polled_pure = {}, set(), True
+        if address in self.time_varying:
+            self._polled_pure = False       # the loop sees time pass: any change must wake it
+            return
+        if address in self.read_side_effects:
+            self._polled_pure = False
+        site = (address, _firmware_location() if site is None else site)
+        if site not in self._polled_sites:
+            self._polled_sites.add(site)
+            return
+        self._parked_on = self._polled if self._polled_pure else None
         process.park()
 
     def write(self, address: int, value: int) -> None:
@@ -155,7 +156,14 @@ class PIC18F8680(SFRNames):
 
     def _loop_would_see_a_change(self) -> bool:
         parked_on = self._parked_on
-        return parked_on is None or any(self._peek(address) != value for address, value in parked_on.items())
+        if parked_on is None:
+            return True
+        devices = self._devices
+        for address, value in parked_on.items():
+            device = devices.get(address)
+            if device is not None and device.read(address) != value:
+                return True
+        return False
 
     def run(self, main: Callable[[], Any]) -> Process:
         """Start firmware `main` on this MCU (after a reset, as programming the chip would)."""

@@ -68,12 +68,23 @@ _MASK_OF = {"RXB0": 0, "RXB1": 1}
 
 # What a CPU access to each address does, decided once from the register map rather than on every access.
 _CONFIGURATION = Mode.CONFIGURATION      # an enum member is slow to look up on its class (CPython 3.11)
-_PLAIN, _PROTECTED, _CANSTAT, _COMSTAT, _TXERRCNT, _RXERRCNT = range(6)
-_READ_KIND: dict[int, int] = {
-    r.address: (_PROTECTED if r.protected else _CANSTAT if r.name.startswith("CANSTAT")
-                else {"COMSTAT": _COMSTAT, "TXERRCNT": _TXERRCNT, "RXERRCNT": _RXERRCNT}.get(r.name, _PLAIN))
-    for r in R.REGISTERS}
-_WINDOW_SHIFT = tuple(R.BUFFER_BASE[R.WINDOW[win]] - R.WINDOW_FIRST for win in range(8))
+_PLAIN, _PROTECTED, _CANSTAT, _COMSTAT, _TXERRCNT, _RXERRCNT, _UNMAPPED = range(7)
+
+def _read_kind(address: int) -> int:
+    register = R.BY_ADDRESS.get(address)
+    if register is None:
+        return _UNMAPPED
+    if register.protected:
+        return _PROTECTED
+    if register.name.startswith("CANSTAT"):
+        return _CANSTAT
+    return {"COMSTAT": _COMSTAT, "TXERRCNT": _TXERRCNT, "RXERRCNT": _RXERRCNT}.get(register.name, _PLAIN)
+
+
+_READ_KIND_AT = tuple(_read_kind(0xF00 + index) for index in range(0x100))     # by address - F00h
+_WINDOW_FIRST, _WINDOW_LAST = R.WINDOW_FIRST - 0xF00, R.WINDOW_LAST - 0xF00    # as indexes
+_WINDOW_SHIFT_BY_CANCON = tuple(R.BUFFER_BASE[R.WINDOW[(cancon & R.WIN_MASK) >> 1]] - R.WINDOW_FIRST
+                                for cancon in range(0x100))
 _TXREQ_LOCK = {r.address: R.BUFFER_BASE[r.name[:4]] - 0xF00 for r in R.REGISTERS   # TXBn data: CON index
                if r.name[:3] == "TXB" and r.name[4:] != "CON"}
 _RESETS_ACCEPTANCE = frozenset(r.address for r in R.REGISTERS if r.protected)   # filters and masks among them
@@ -147,15 +158,18 @@ class ECAN:
     # ----------------------------------------------------------------- firmware side
     def read(self, address: int) -> int:
         """What the CPU reads at an SFR address (after the CANCON.WIN window)."""
-        if R.WINDOW_FIRST <= address <= R.WINDOW_LAST:
-            address += _WINDOW_SHIFT[(self._sfr[0x6F] & R.WIN_MASK) >> 1]
-        kind = _READ_KIND.get(address)
+        index = address - 0xF00
+        if _WINDOW_FIRST <= index <= _WINDOW_LAST:
+            index += _WINDOW_SHIFT_BY_CANCON[self._sfr[0x6F]]
+        elif not 0 <= index <= 0xFF:
+            return 0
+        kind = _READ_KIND_AT[index]
         if kind == _PLAIN:
-            return self._sfr[address - 0xF00]
-        if kind is None:
+            return self._sfr[index]
+        if kind == _UNMAPPED:
             return 0
         if kind == _PROTECTED:
-            return self._sfr[address - 0xF00] if self.opmode == _CONFIGURATION else 0
+            return self._sfr[index] if self.opmode == _CONFIGURATION else 0
         if kind == _CANSTAT:
             return (self.opmode << 5) | (self._icode() << 1)
         if kind == _COMSTAT:
@@ -188,8 +202,8 @@ class ECAN:
             self._after_write(reg.name, old, new)
 
     def _windowed(self, address: int) -> int:
-        if R.WINDOW_FIRST <= address <= R.WINDOW_LAST:
-            return address + _WINDOW_SHIFT[(self._sfr[0x6F] & R.WIN_MASK) >> 1]
+        if _WINDOW_FIRST <= address - 0xF00 <= _WINDOW_LAST:
+            return address + _WINDOW_SHIFT_BY_CANCON[self._sfr[0x6F]]
         return address
 
     def _after_write(self, name: str, old: int, new: int) -> None:
