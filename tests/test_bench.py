@@ -5,10 +5,16 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+from bench import fullload
+
 KIT = Path(__file__).resolve().parent.parent
 ROWS = (
     "real-time factor: 7 nodes, 1 Mbit/s, 100 % load",
     "frames per wall second at that load",
+    "real-time factor: 7 nodes, 1 Mbit/s, 100 % load, each reads one sender's frames",
+    "real-time factor: 7 nodes, 125 kbit/s (the workshop's), 100 % load",
     "real-time factor: 14 nodes, 100% load",
     "real-time factor: 28 nodes, 100% load",
     "real-time factor: 7 nodes, 25% load",
@@ -52,8 +58,26 @@ def test_quick_suite_prints_the_table_with_a_figure_or_a_reason_in_every_row():
     # an 8-byte standard frame is 111 bits unstuffed and at most 135 stuffed, plus 3 bits of intermission
     assert 1e6 / (135 + 3) <= frames_per_s <= 1e6 / (111 + 3)
     assert "run(s) per figure, on " in result.stdout.splitlines()[0]
+    assert "firmware read 17% of deliveries" in rows["real-time factor: 7 nodes, 1 Mbit/s, 100 % load, "
+                                                      "each reads one sender's frames"][7]
 
 
 def test_runs_below_one_is_refused_with_the_reason():
     result = bench("--quick", "--runs", "0")
     assert result.returncode != 0 and "--runs is how often each figure is measured, at least 1" in result.stderr
+
+
+def test_full_load_keeps_the_bus_full_and_the_filters_decide_what_the_firmware_reads():
+    every = fullload.run(7, 1.0, 0.003)
+    one = fullload.run(7, 1.0, 0.003, one_sender=True)
+    slow = fullload.run(7, 1.0, 0.02, bit_rate=125_000)
+    for run in (every, one, slow):
+        assert run.bus_busy > 0.95, "every node always has a frame queued: the wire never rests"
+    assert every.read_by_firmware > 0.95      # a frame ending as the run ends is read after it
+    assert abs(one.read_by_firmware - 1 / 6) < 0.02, "each node's filters pass the next node's frames only"
+    assert slow.bus_limit_fps * 7.5 < every.bus_limit_fps < slow.bus_limit_fps * 8.5
+
+
+def test_a_node_count_the_identifiers_cannot_name_is_refused():
+    with pytest.raises(ValueError, match="2 to 32 nodes, not 40"):
+        fullload.run(40, 1.0, 0.001)
