@@ -2,7 +2,7 @@
 
 Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
 from the same place in the firmware, with nothing changed since) parks the firmware until a
-peripheral event changes something: a busy-wait costs one loop turn per event, not per cycle.
+peripheral event changes something it reads: a busy-wait costs one loop turn per event, not per cycle.
 """
 from __future__ import annotations
 
