@@ -103,13 +103,16 @@ class PIC18F8680(SFRNames):
             process.local_time += self._access_ps     # process.spend, its common case inline
             if process.local_time > process.horizon:
                 process.spend(0)
-            if self._seen.get(address) == self.version:     # after spend: other firmware and events may have run
+            again = self._seen.get(address) == self.version    # after spend: other firmware and events may have run
+            if again:
                 self._read_again(process, address, site)
-                value = self._polled[address] = device.read(address) if device is not None else 0
-                self._seen[address] = self.version
-                return value
             self._seen[address] = self.version
-        return device.read(address) if device is not None else 0
+        else:
+            again = False
+        value = device.read(address) if device is not None else 0
+        if again:
+            self._polled[address] = value       # what the polling loop saw, to tell a change it would see
+        return value
 
     def _read_again(self, process: Process, address: int, site: object) -> None:
         """A register read again with nothing changed since: from the same place in the firmware, that

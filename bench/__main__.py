@@ -31,8 +31,15 @@ QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200
                linked_s=0.2, round_trips=2, class_size=2)
 
 
+def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
+          one_sender: bool = False) -> list[fullload.Run]:
+    """`config.runs` timed full-model runs (at least one)."""
+    return [fullload.run(nodes, load, simulated_s, bit_rate=bit_rate, one_sender=one_sender)
+            for _ in range(max(config.runs, 1))]
+
+
 def _full_load(config: Config) -> list[Figure]:
-    runs = [fullload.run(7, 1.0, config.full_load_s) for _ in range(max(config.runs, 1))]
+    runs = _runs(config, 7, 1.0, config.full_load_s)
     last = runs[-1]
     rtf = Figure("real-time factor: 7 nodes, 1 Mbit/s, 100 % load", "sim s / wall s",
                  tuple(r.real_time_factor for r in runs), target=1, aim=10,
@@ -41,12 +48,12 @@ def _full_load(config: Config) -> list[Figure]:
                  tuple(r.frames_per_wall_second for r in runs),
                  note=f"bus limit {last.bus_limit_fps:,.0f} frames/s ({last.mean_frame_bits:.1f} bits a frame "
                       "with stuffing and intermission)")
-    filtered = [fullload.run(7, 1.0, config.full_load_s, one_sender=True) for _ in range(max(config.runs, 1))]
+    filtered = _runs(config, 7, 1.0, config.full_load_s, one_sender=True)
     classroom_like = Figure("real-time factor: 7 nodes, 1 Mbit/s, 100 % load, each reads one sender's frames",
                             "sim s / wall s", tuple(r.real_time_factor for r in filtered),
                             note=f"masks and filters pass 1 frame in 6, as a classroom "
                                  f"station's do; firmware read {filtered[-1].read_by_firmware:.0%} of deliveries")
-    workshop = [fullload.run(7, 1.0, 8 * config.full_load_s, bit_rate=125_000) for _ in range(max(config.runs, 1))]
+    workshop = _runs(config, 7, 1.0, 8 * config.full_load_s, bit_rate=125_000)
     workshop_rate = Figure("real-time factor: 7 nodes, 125 kbit/s (the workshop's), 100 % load", "sim s / wall s",
                            tuple(r.real_time_factor for r in workshop),
                            note=f"load {workshop[-1].bus_busy:.0%}, firmware read "
@@ -57,7 +64,7 @@ def _full_load(config: Config) -> list[Figure]:
 def _scaling(config: Config) -> list[Figure]:
     figures = []
     for nodes, load in ((7, 1.0), (14, 1.0), (28, 1.0), (7, 0.5), (7, 0.25)):
-        runs = [fullload.run(nodes, load, config.scaling_s) for _ in range(max(config.runs, 1))]
+        runs = _runs(config, nodes, load, config.scaling_s)
         per_delivery = statistics.median(r.wall_s / max(r.frames * (r.nodes - 1), 1) for r in runs) * 1e6
         figures.append(Figure(f"real-time factor: {nodes} nodes, {load:.0%} load", "sim s / wall s",
                               tuple(r.real_time_factor for r in runs),

@@ -70,6 +70,7 @@ _MASK_OF = {"RXB0": 0, "RXB1": 1}
 _CONFIGURATION = Mode.CONFIGURATION      # an enum member is slow to look up on its class (CPython 3.11)
 _PLAIN, _PROTECTED, _CANSTAT, _COMSTAT, _TXERRCNT, _RXERRCNT, _UNMAPPED = range(7)
 
+
 def _read_kind(address: int) -> int:
     register = R.BY_ADDRESS.get(address)
     if register is None:
