@@ -13,15 +13,15 @@ from typing import TextIO
 
 import can
 
-from appsim.board import APP023
-from appsim.bus import Bus
-from appsim.classroom import EXERCISES, SOLUTIONS, STATIONS, Classroom, station_defines, station_ids
-from appsim.link import BusLink
-from appsim.loader import FirmwareError, constants, load_firmware
-from appsim.monitor import HEADER, LiveTrace, error_counters, summary, write_log
-from appsim.realtime import WallClock
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
+from appsim.workshop.classroom import EXERCISES, SOLUTIONS, STATIONS, Classroom, station_defines, station_ids
+from appsim.bus.link import BusLink
+from appsim.firmware.loader import FirmwareError, constants, load_firmware
+from appsim.bus.monitor import HEADER, LiveTrace, error_counters, summary, write_log
+from appsim.bus.realtime import WallClock
 from appsim.sim import PS_PER_SECOND, Simulator
-from appsim.usbcdc import UsbCdc
+from appsim.board.usbcdc import UsbCdc
 
 KIT = Path(__file__).resolve().parent.parent
 CLASSROOM_BIT_RATE = 125_000
@@ -265,7 +265,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def cmd_bittiming(args: argparse.Namespace) -> int:
-    from appsim.bittiming import calculate, format_table
+    from appsim.can.bittiming import calculate, format_table
     solutions = calculate(args.bit_rate, args.fosc)
     if not solutions:
         print(f"no valid bit timing gives exactly {args.bit_rate} bit/s at Fosc {args.fosc} Hz "
@@ -277,15 +277,15 @@ def cmd_bittiming(args: argparse.Namespace) -> int:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """One exercise, checked as in the notebook: the verdict, and exit status 0 only with full marks."""
-    from appsim.checks import check
+    from appsim.workshop.checks import check
     verdict = check(args.exercise, args.firmware, seed=args.seed)
     print(verdict)
     return 0 if verdict.passed else 1
 
 
 def cmd_grade(args: argparse.Namespace) -> int:
-    from appsim.grade import GradeError, run
-    from appsim.sandbox import Limits
+    from appsim.workshop.grade import GradeError, run
+    from appsim.workshop.sandbox import Limits
     try:
         run(args.paths, results=args.json, csv_path=args.csv, gradescope_path=args.gradescope, jobs=args.jobs,
             seed=args.seed, limits=Limits(time_s=args.time_limit, stall_s=min(10.0, args.time_limit)))

@@ -95,7 +95,7 @@ def _busy_wait(config: Config) -> list[Figure]:
 def _grading(config: Config) -> list[Figure]:
     one = "grade one submission (solutions of Ex1..Ex6)"
     first = Figure(one, "wall s", repeat(config.runs, grading.one_submission_s), target=5, aim=1,
-                   lower_is_better=True, note="appsim.checks.check, in process")
+                   lower_is_better=True, note="appsim.workshop.checks.check, in process")
     sandboxed = Figure("appsim grade: one submission (Ex1..Ex6), sandboxed", "wall s",
                        repeat(config.runs, lambda: grading.appsim_grade_s(1, jobs=1)), target=5, aim=1,
                        lower_is_better=True, note="the whole command, Python start included")

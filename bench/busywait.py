@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import time
 
-from appsim.board import APP023
-from appsim.bus import Bus
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
 from appsim.firmware import (
     CAN_CONFIG_ALL_VALID_MSG,
     CAN_TX_STD_FRAME,

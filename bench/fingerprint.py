@@ -12,9 +12,9 @@ FULL_LOAD_SECONDS = 0.01
 
 
 def _room_lines(exercise: int) -> list[str]:
-    from appsim.board import APP023
-    from appsim.bus import Bus
-    from appsim.classroom import Classroom
+    from appsim.board.app023 import APP023
+    from appsim.bus.wire import Bus
+    from appsim.workshop.classroom import Classroom
     from appsim.sim import Simulator
 
     bus = Bus(Simulator(), 125_000)
@@ -42,8 +42,8 @@ def _full_load_lines() -> list[str]:
 
 
 def _verdict_lines(seed: int = 2024) -> list[str]:
-    from appsim.checks import EXERCISES, check
-    from appsim.classroom import SOLUTIONS
+    from appsim.workshop.checks import EXERCISES, check
+    from appsim.workshop.classroom import SOLUTIONS
 
     files = {exercise: SOLUTIONS / f"{exercise}.py" for exercise in EXERCISES}
     files["demo1"] = SOLUTIONS / "demo1_monitor.py"

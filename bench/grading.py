@@ -1,4 +1,4 @@
-"""Grading throughput: wall time to grade the solutions of Ex1..Ex6 with `appsim.checks.check` in process,
+"""Grading throughput: wall time to grade the solutions of Ex1..Ex6 with `appsim.workshop.checks.check` in process,
 and with `appsim grade` (each submission's firmware sandboxed in its own process): one submission, a class.
 """
 from __future__ import annotations
@@ -10,11 +10,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from appsim.classroom import EXERCISES, SOLUTIONS
+from appsim.workshop.classroom import EXERCISES, SOLUTIONS
 
 def one_submission_s(seed: int = 1) -> float:
     """Wall seconds to check the solutions of Ex1..Ex6 as one student's submission (every check must pass)."""
-    from appsim.checks import check
+    from appsim.workshop.checks import check
     started = time.perf_counter()
     verdicts = [check(f"ex{n}", SOLUTIONS / f"ex{n}.py", seed=seed) for n in EXERCISES]
     wall = time.perf_counter() - started

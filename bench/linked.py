@@ -11,11 +11,11 @@ import time
 
 import can
 
-from appsim.board import APP023
-from appsim.bus import Bus
-from appsim.classroom import MASTER_FIRMWARE, SOLUTIONS
-from appsim.link import BusLink
-from appsim.realtime import WallClock
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
+from appsim.workshop.classroom import MASTER_FIRMWARE, SOLUTIONS
+from appsim.bus.link import BusLink
+from appsim.bus.realtime import WallClock
 from appsim.sim import Simulator
 
 EX2_PERIOD_MS = 65536 * 8 * 4 / 40e6 * 1e3      # Timer1 overflow at 1:8 from Fosc/4: 52.4288 ms

@@ -9,8 +9,8 @@ import time
 
 import can
 
-from appsim.board import APP023
-from appsim.bus import Bus
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
 from appsim.firmware import CAN_CONFIG_VALID_STD_MSG, CANInitialize, CANIsRxReady, CANReceiveMessage
 from appsim.sim import PS_PER_SECOND, Simulator
 from bench import fullload

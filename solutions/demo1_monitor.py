@@ -17,9 +17,9 @@ queue in RAM; when it is full they are counted and the monitor says how many it 
 DSW2 switch 1 ON at reset (RJ0 reads 0): the board is an SLCAN (Lawicel) adapter instead, so a PC
 program such as python-can (`interface="slcan"`) can receive and send frames through it.
 """
-from appsim import slcan
+from appsim.can import slcan
 from appsim.firmware import *
-from appsim.frame import CanFrame
+from appsim.can.frame import CanFrame
 
 QUEUE_FRAMES = 16             # frames waiting for the USART (13 bytes of RAM each)
 COMMAND_CHARS = 32            # longest SLCAN command: T + 8 + 1 + 16 = 26 characters

@@ -5,8 +5,8 @@ from collections.abc import Callable
 
 import pytest
 
-from appsim.bus import Bus
-from appsim.mcu import PIC18F8680
+from appsim.bus.wire import Bus
+from appsim.chip.mcu import PIC18F8680
 from appsim.sim import PS_PER_SECOND, Simulator
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from appsim.checks import check_names
+from appsim.workshop.checks import check_names
 
 
 class Mistake(NamedTuple):

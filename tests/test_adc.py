@@ -5,7 +5,7 @@ from collections.abc import Callable
 
 import pytest
 
-from appsim.adc import (
+from appsim.chip.adc import (
     ADC,
     ADC_1ANA,
     ADC_16ANA,
@@ -36,7 +36,7 @@ from appsim.adc import (
     attach_adc,
 )
 from appsim.firmware import Delay10KTCYx
-from appsim.mcu import PIC18F8680
+from appsim.chip.mcu import PIC18F8680
 from appsim.sim import Simulator
 
 TOSC_PS = 25_000                            # Fosc = 40 MHz

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from appsim.bits import (
+from appsim.can.bits import (
     CrcError,
     FormError,
     StuffError,
@@ -21,7 +21,7 @@ from appsim.bits import (
     frame_time,
     frame_time_ps,
 )
-from appsim.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
+from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
 
 TAIL_BITS = 10  # CRC delimiter, ACK slot, ACK delimiter, 7 EOF bits: never stuffed
 

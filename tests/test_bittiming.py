@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from appsim.bittiming import (
+from appsim.can.bittiming import (
     BRGCON3_IMPLEMENTED,
     BitTiming,
     BitTimingError,

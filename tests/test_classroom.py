@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 from workshop import KIT, MS, classroom, payload, sent
 
-from appsim.bus import Bus
-from appsim.classroom import Classroom, station_ids
-from appsim.loader import FirmwareError, constants, load_firmware
+from appsim.bus.wire import Bus
+from appsim.workshop.classroom import Classroom, station_ids
+from appsim.firmware.loader import FirmwareError, constants, load_firmware
 from appsim.sim import Simulator
 
 STATION_IDS = [0x100, 0x110, 0x120, 0x130, 0x140, 0x150]

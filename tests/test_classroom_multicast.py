@@ -16,12 +16,12 @@ GROUP = UdpMulticastBus.DEFAULT_GROUP_IPv4
 
 PC = """
 import json, sys
-from appsim.board import APP023
-from appsim.bus import Bus
-from appsim.classroom import MASTER_FIRMWARE, SOLUTIONS
-from appsim.link import BusLink
-from appsim.loader import load_firmware
-from appsim.realtime import WallClock
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
+from appsim.workshop.classroom import MASTER_FIRMWARE, SOLUTIONS
+from appsim.bus.link import BusLink
+from appsim.firmware.loader import load_firmware
+from appsim.bus.realtime import WallClock
 from appsim.sim import Simulator
 
 role, group, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])

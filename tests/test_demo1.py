@@ -7,12 +7,12 @@ from pathlib import Path
 
 import serial
 
-from appsim.board import APP023
-from appsim.bus import Bus
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
 from appsim.firmware import *  # noqa: F403
-from appsim.mcu import PIC18F8680
+from appsim.chip.mcu import PIC18F8680
 from appsim.sim import PS_PER_SECOND, Simulator
-from appsim.usbcdc import UsbCdc
+from appsim.board.usbcdc import UsbCdc
 
 KIT = Path(__file__).resolve().parent.parent
 SOLUTION = KIT / "solutions" / "demo1_monitor.py"

@@ -1,9 +1,9 @@
 """The ECAN register file on its own: addresses, reset values, access rules, windows, ICODE."""
 from __future__ import annotations
 
-from appsim.ecan import registers as R
-from appsim.ecan.controller import ECAN, Mode
-from appsim.frame import CanFrame
+from appsim.chip.ecan import registers as R
+from appsim.chip.ecan.controller import ECAN, Mode
+from appsim.can.frame import CanFrame
 
 
 def addr(name: str) -> int:
@@ -225,7 +225,7 @@ def test_bus_off_recovers_after_128_sequences_of_11_recessive_bits():
 
 def test_ecancon_other_than_mode_0_is_refused_with_an_explanation():
     import pytest
-    from appsim.ecan.controller import UnsupportedMode
+    from appsim.chip.ecan.controller import UnsupportedMode
     ecan = ECAN()
     with pytest.raises(UnsupportedMode, match="legacy Mode 0"):
         ecan.write(addr("ECANCON"), 0x40)

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from appsim.board import APP023
-from appsim.loader import FirmwareError, load_firmware
+from appsim.board.app023 import APP023
+from appsim.firmware.loader import FirmwareError, load_firmware
 
 KIT = Path(__file__).resolve().parent.parent
 

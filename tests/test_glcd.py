@@ -7,9 +7,9 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from appsim.board import APP023
+from appsim.board.app023 import APP023
 from appsim.firmware import GLCD_Initial, putcGLCD, putrsGLCD, putsGLCD, setcurGLCD
-from appsim.glcd import CHARACTER_CYCLES, NotInitialised
+from appsim.board.glcd import CHARACTER_CYCLES, NotInitialised
 
 TCY_PS = 100_000
 

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from appsim.grade import EXERCISE_FILES, GradeError, find_submissions, run
-from appsim.sandbox import Limits
+from appsim.workshop.grade import EXERCISE_FILES, GradeError, find_submissions, run
+from appsim.workshop.sandbox import Limits
 
 KIT = Path(__file__).resolve().parent.parent
 SOLUTIONS = KIT / "solutions"
@@ -40,9 +40,9 @@ def build_class(root: Path, hidden: Path) -> dict[str, dict[str, str]]:
     submissions = {
         "alice": {exercise: solution(exercise) for exercise in EXERCISE_FILES},          # full marks
         "bob": {"ex1": STARTER_EX1, "ex2": solution("ex2")},         # the starter's filter: RXB0 gets nothing
-        "carol": {"ex1": "import appsim.checks, appsim.checks.verdict\n"
-                         "appsim.checks.verdict.Verdict.score = property(lambda self: 999)\n"
-                         "appsim.checks.check = lambda *args, **kwargs: None\n" + STARTER_EX1},
+        "carol": {"ex1": "import appsim.workshop.checks, appsim.workshop.checks.verdict\n"
+                         "appsim.workshop.checks.verdict.Verdict.score = property(lambda self: 999)\n"
+                         "appsim.workshop.checks.check = lambda *args, **kwargs: None\n" + STARTER_EX1},
         "dave": {"ex1": STARTER_EX1.replace("def main():", 'print(\'{"score": 100, "max_score": 100}\')\n\n\n'
                                                            "def main():\n    print('{\"score\": 100}')")},
         "erin": {"ex1": firmware("import sys\nsys.exit(0)"), "ex2": firmware("import os\nos._exit(0)"),

@@ -7,9 +7,9 @@ import time
 import can
 import pytest
 
-from appsim.an738 import *  # noqa: F403
-from appsim.link import BusLink
-from appsim.realtime import WallClock
+from appsim.firmware.an738 import *  # noqa: F403
+from appsim.bus.link import BusLink
+from appsim.bus.realtime import WallClock
 
 _channels = itertools.count()
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from mistakes import MISTAKES, Mistake
 
-from appsim.checks import check
+from appsim.workshop.checks import check
 
 SOLUTIONS = Path(__file__).resolve().parent.parent / "solutions"
 

@@ -7,7 +7,7 @@ import subprocess
 import can
 import pytest
 
-from appsim.monitor import HEADER, bus_load, error_counters, format_event, summary, write_log
+from appsim.bus.monitor import HEADER, bus_load, error_counters, format_event, summary, write_log
 from test_bus_gotchas import normal_node
 from appsim.firmware import *  # noqa: F403
 

@@ -8,12 +8,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pytest
 
-from appsim import plots
-from appsim.bits import encode, encode_annotated
-from appsim.bittiming import BitTiming
-from appsim.board import APP023
-from appsim.bus import Bus
-from appsim.classroom import Classroom
+from appsim.workshop import plots
+from appsim.can.bits import encode, encode_annotated
+from appsim.can.bittiming import BitTiming
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
+from appsim.workshop.classroom import Classroom
 from appsim.firmware import (
     CAN_CONFIG_ALL_MSG,
     CAN_TX_PRIORITY_0,
@@ -21,8 +21,8 @@ from appsim.firmware import (
     CANIsRxReady,
     CANSendMessage,
 )
-from appsim.frame import CanFrame
-from appsim.monitor import bus_load
+from appsim.can.frame import CanFrame
+from appsim.bus.monitor import bus_load
 from appsim.sim import PS_PER_SECOND, Simulator
 
 EX1_FRAME = CanFrame(0x100, bytes([1, 2, 3, 0x02, 0x9A]))

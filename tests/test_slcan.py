@@ -9,15 +9,15 @@ from pathlib import Path
 import can
 import pytest
 
-from appsim.board import APP023
-from appsim.bus import Bus
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
 from appsim.firmware import *  # noqa: F403
-from appsim.frame import CanFrame
-from appsim.realtime import WallClock
+from appsim.can.frame import CanFrame
+from appsim.bus.realtime import WallClock
 from appsim.sim import PS_PER_SECOND, Simulator
-from appsim.slcan import (BIT_RATES, Close, Nothing, Open, Query, SetBitRate, SlcanError, Timestamps,
+from appsim.can.slcan import (BIT_RATES, Close, Nothing, Open, Query, SetBitRate, SlcanError, Timestamps,
                           Transmit, encode_frame, parse_command, status_reply, transmit_reply)
-from appsim.usbcdc import UsbCdc
+from appsim.board.usbcdc import UsbCdc
 
 FRAMES = [
     CanFrame(0x088, bytes([1, 2, 3, 2, 0x9A])),

@@ -7,8 +7,8 @@ import random
 import pytest
 from workshop import KIT, MS, classroom, payload, sent
 
-from appsim.classroom import Classroom
-from appsim.ecan.controller import Mode
+from appsim.workshop.classroom import Classroom
+from appsim.chip.ecan.controller import Mode
 
 TIMER1_PERIOD_PS = 65536 * 8 * 100_000        # 1:8 of Fosc/4 at 40 MHz: 52.4288 ms
 

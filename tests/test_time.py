@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from appsim.board import APP023
+from appsim.board.app023 import APP023
 from appsim.firmware import *  # noqa: F403
 from appsim.sim import PS_PER_SECOND
 

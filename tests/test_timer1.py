@@ -5,7 +5,7 @@ import itertools
 
 import pytest
 
-from appsim.board import APP023
+from appsim.board.app023 import APP023
 from appsim.firmware import (
     T1_8BIT_RW,
     T1_16BIT_RW,

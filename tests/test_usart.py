@@ -6,7 +6,7 @@ from collections.abc import Callable
 
 import pytest
 
-from appsim.board import APP023
+from appsim.board.app023 import APP023
 from appsim.firmware import (
     SFR,
     USART_ASYNCH_MODE,

@@ -7,11 +7,11 @@ import os
 import pytest
 import serial
 
-from appsim.board import APP023
-from appsim.bus import Bus
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
 from appsim.firmware import *  # noqa: F403
 from appsim.sim import PS_PER_SECOND, Simulator
-from appsim.usbcdc import UsbCdc
+from appsim.board.usbcdc import UsbCdc
 
 LINK_19200 = (USART_TX_INT_OFF & USART_RX_INT_OFF & USART_ASYNCH_MODE & USART_EIGHT_BIT
               & USART_CONT_RX & USART_BRGH_HIGH, 129)
@@ -83,7 +83,7 @@ def test_bytes_the_pc_does_not_read_are_lost_counted_and_reported_never_silently
     sim, board = board_running(chatter)
     sent = bytearray()
     board.usb.listeners.append(lambda byte, time_ps: sent.append(byte))
-    with caplog.at_level(logging.WARNING, logger="appsim.usbcdc"), UsbCdc(board) as usb, \
+    with caplog.at_level(logging.WARNING, logger="appsim.board.usbcdc"), UsbCdc(board) as usb, \
             serial.Serial(usb.port, timeout=0.2) as port:
         run(sim, 12.0)                   # 23 kB at 19200 baud, the PC busy elsewhere: the kernel keeps ~20 kB
         kept = port.read(len(sent))
@@ -96,7 +96,7 @@ def test_on_the_socket_bytes_are_lost_while_no_program_is_connected(caplog):
     sim, board = board_running(chatter)
     sent = []
     board.usb.listeners.append(lambda byte, time_ps: sent.append(byte))
-    with caplog.at_level(logging.WARNING, logger="appsim.usbcdc"), UsbCdc(board, transport="socket") as usb:
+    with caplog.at_level(logging.WARNING, logger="appsim.board.usbcdc"), UsbCdc(board, transport="socket") as usb:
         run(sim, 0.1)
         assert usb.lost_bytes == len(sent) > 0
         assert "no program is connected" in caplog.text

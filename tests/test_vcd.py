@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from appsim.bits import INTERMISSION_BITS, encode, encode_annotated, frame_bits
-from appsim.frame import CanFrame
-from appsim.vcd import BUS_IDLE_BITS, write_vcd
+from appsim.can.bits import INTERMISSION_BITS, encode, encode_annotated, frame_bits
+from appsim.can.frame import CanFrame
+from appsim.can.vcd import BUS_IDLE_BITS, write_vcd
 
 CLASSROOM_FRAMES = [
     CanFrame(0x100, bytes([1, 2, 3, 0x02, 0x9A])),  # station 0: 01 02 03 ADRESH ADRESL

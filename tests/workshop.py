@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from appsim.bus import Bus, BusEvent
-from appsim.classroom import Classroom
+from appsim.bus.wire import Bus, BusEvent
+from appsim.workshop.classroom import Classroom
 from appsim.sim import PS_PER_SECOND, Simulator
 
 KIT = Path(__file__).resolve().parent.parent

@@ -4,9 +4,9 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from appsim.bus import Bus
-from appsim.classroom import Classroom
-from appsim.link import BusLink
+from appsim.bus.wire import Bus
+from appsim.workshop.classroom import Classroom
+from appsim.bus.link import BusLink
 from appsim.sim import PS_PER_SECOND, Simulator
 
 

@@ -1,0 +1,133 @@
+"""DSW2, the APP023's 8-position DIP switch: where the USART goes (5 6 -> PIC18F2550 USB, 3 4 -> CON9 RS-232), and PORTJ.
+
+Positions 1 and 2 are read by firmware on RJ0/RJ1 (ON reads 0, pulled up); PORTJ, LATJ and TRISJ are modelled for that.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+from appsim.chip.mcu import PIC18F8680
+
+POSITIONS = range(1, 9)
+USB, CON9 = "usb", "con9"
+_PAIRS = {USB: (5, 6), CON9: (3, 4)}
+_PLACES = {USB: "PIC18F2550 USB", CON9: "CON9 RS-232"}
+
+
+class DSW2:
+    """The switch bank. Default as the workshop needs it: 5 and 6 ON (USART to the USB-CDC monitor), others OFF.
+
+    The USART reaches the PIC18F2550 when 5 and 6 are ON and 3 and 4 OFF, and CON9 when 3 and 4 are ON
+    and 5 and 6 OFF. Any other setting of 3..6 (both pairs, half a pair, none) connects it to nothing
+    usable: bytes sent go nowhere and nothing is received (the kit's convention; the workshop only says
+    which pair to set). `routing` says so in words. Positions 7 and 8 are not connected.
+    """
+
+    def __init__(self, mcu: PIC18F8680, on: Iterable[int] = (5, 6)):
+        self.mcu = mcu
+        self._on: set[int] = set()
+        self.set(on)
+
+    def on(self, *positions: int) -> None:
+        """Switch `positions` ON."""
+        self._on |= set(_checked(positions))
+        self.mcu.changed()
+
+    def off(self, *positions: int) -> None:
+        """Switch `positions` OFF."""
+        self._on -= set(_checked(positions))
+        self.mcu.changed()
+
+    def set(self, on: Iterable[int]) -> None:
+        """Switch exactly the positions in `on` ON and the others OFF."""
+        self._on = set(_checked(tuple(on)))
+        self.mcu.changed()
+
+    def is_on(self, position: int) -> bool:
+        return _checked((position,))[0] in self._on
+
+    @property
+    def route(self) -> str | None:
+        """Where the USART goes: "usb", "con9", or None (nowhere)."""
+        for route, pair in _PAIRS.items():
+            other = _PAIRS[CON9 if route == USB else USB]
+            if set(pair) <= self._on and not set(other) & self._on:
+                return route
+        return None
+
+    @property
+    def routing(self) -> str:
+        """The USART's routing in words, with what to change when it goes nowhere."""
+        route = self.route
+        if route is not None:
+            return f"USART -> {_PLACES[route]}"
+        usb, con9 = (set(_PAIRS[r]) & self._on for r in (USB, CON9))
+        if usb and con9:
+            problem = "switches of both pairs are ON, mixing the PIC18F2550 and CON9 paths"
+        elif usb or con9:
+            half = sorted(usb or con9)
+            problem = f"{' '.join(map(str, half))} ON alone: a path needs both switches of its pair"
+        else:
+            problem = "3 4 and 5 6 are all OFF"
+        return (f"USART -> nowhere ({problem}); set 5 6 ON and 3 4 OFF for the USB monitor, "
+                f"or 3 4 ON and 5 6 OFF for CON9 RS-232")
+
+    def __str__(self) -> str:
+        on = " ".join(str(p) for p in sorted(self._on)) + " ON" if self._on else "all OFF"
+        return f"DSW2: {on} ({self.routing})"
+
+
+def _checked(positions: tuple[int, ...]) -> tuple[int, ...]:
+    for position in positions:
+        if not isinstance(position, int) or isinstance(position, bool) or position not in POSITIONS:
+            raise ValueError(f"DSW2 has positions 1..8; got {position!r}")
+    return positions
+
+
+# ------------------------------------------------------------------ PORTJ: DSW2 1 and 2 on RJ0 and RJ1
+_PORTJ, _LATJ, _TRISJ = 0xF88, 0xF91, 0xF9A
+REGISTERS: tuple[tuple[str, int], ...] = (("PORTJ", _PORTJ), ("LATJ", _LATJ), ("TRISJ", _TRISJ))
+BITFIELDS: dict[str, dict[str, tuple[int, int]]] = {
+    "PORTJ": {f"RJ{n}": (n, 1) for n in range(8)},
+    "LATJ": {f"LATJ{n}": (n, 1) for n in range(8)},
+    "TRISJ": {f"TRISJ{n}": (n, 1) for n in range(8)},
+}
+
+
+class PortJ:
+    """PORTJ, LATJ and TRISJ, only as far as DSW2 needs: a Peripheral on the SFR bus.
+
+    TRISJ resets to 0xFF (all inputs). An input pin reads its level: RJ0 and RJ1 are DSW2 positions 1
+    and 2, pulled up, so ON reads 0 and OFF reads 1; RJ2..RJ7 are not modelled and read 0 as inputs.
+    An output pin reads back its LATJ bit; writing PORTJ writes LATJ, as on the chip.
+    """
+
+    def __init__(self, dsw2: DSW2):
+        self.dsw2 = dsw2
+        self._latch = 0
+        self._tris = 0xFF
+
+    def pins(self) -> int:
+        """The levels DSW2 puts on RJ0 and RJ1 (pulled up: OFF = 1)."""
+        return sum((not self.dsw2.is_on(position)) << (position - 1) for position in (1, 2))
+
+    def read(self, address: int) -> int:
+        if address == _PORTJ:
+            return (self.pins() & self._tris) | (self._latch & ~self._tris & 0xFF)
+        return self._latch if address == _LATJ else self._tris
+
+    def write(self, address: int, value: int) -> None:
+        if address == _TRISJ:
+            self._tris = value
+        else:
+            self._latch = value
+
+
+def attach_dsw2(mcu: PIC18F8680) -> tuple[DSW2, PortJ]:
+    """Give `mcu` the board's DSW2 (default 5 6 ON) and the PORTJ it is read through."""
+    if "PORTJ" in mcu.sfr_addresses:
+        raise ValueError(f"{mcu.name} already has its PORTJ")
+    dsw2 = DSW2(mcu)
+    port = PortJ(dsw2)
+    mcu.map(port, REGISTERS)
+    return dsw2, port

@@ -1,0 +1,229 @@
+"""The APP023's 128x64 graphic LCD as the workshop uses it: 8 lines of 21 characters, driven by APP023_GLCD.C's API.
+
+Not register level: the C driver bit-bangs ports; here each call costs the instruction cycles that driver would take.
+"""
+from __future__ import annotations
+
+import weakref
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+
+from appsim.board import font5x7
+from appsim.chip.mcu import CALL_CYCLES, PIC18F8680, current_mcu
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+LINES, COLUMNS = 8, 21                      # text lines of 6x8 cells on 128x64 pixels
+WIDTH_PX, HEIGHT_PX = 128, 64
+CELL_WIDTH, CELL_HEIGHT = 6, 8              # 5x7 glyph, one blank column and one blank row
+# Instruction cycles, from how a KS0108-style driver bit-bangs the controller: one display byte (a
+# column of 8 pixels, or a command) is a data-port write, RS/RW set-up, an enable pulse >= 450 ns
+# and a busy-flag check, about 25 Tcy at 10 MIPS.
+BYTE_CYCLES = 25
+CHARACTER_CYCLES = 6 * BYTE_CYCLES          # 5 glyph columns + 1 blank column: 150 Tcy = 15 µs
+CURSOR_CYCLES = 2 * BYTE_CYCLES             # set page (line) and column address
+INITIAL_CYCLES = 10 * BYTE_CYCLES + WIDTH_PX * LINES * BYTE_CYCLES   # set-up commands, then clear 1024 bytes
+
+
+class Write(NamedTuple):
+    """One thing the firmware wrote: when (ps, when it finished), where (line, column from 1) and what."""
+
+    time_ps: int
+    line: int
+    column: int
+    text: str
+
+
+class NotInitialised(RuntimeError):
+    """A GLCD function was called before GLCD_Initial()."""
+
+
+class GLCD:
+    """The screen of one APP023, as text cells; what the firmware's GLCD calls change and when.
+
+    Before `GLCD_Initial()` the screen is off and blank. Text is written at the cursor, which advances
+    one cell per character; characters that would fall past column 21 are cut off (the line does not
+    wrap). Characters outside printable ASCII (0x20..0x7E) show as a box (a hollow 5x7 rectangle; "□"
+    in the text views). Strings stop at a NUL, as C strings do.
+    """
+
+    def __init__(self, mcu: PIC18F8680):
+        self.mcu = mcu
+        self.initialised = False
+        self.backlight = False
+        self._codes = [[0x20] * COLUMNS for _ in range(LINES)]
+        self._line = 0
+        self._column = 0
+        self.history: list[Write] = []
+
+    # -------------------------------------------------------------- what the firmware does
+    def initial(self) -> None:
+        self._codes = [[0x20] * COLUMNS for _ in range(LINES)]
+        self._line = self._column = 0
+        self.initialised = True
+        self.backlight = True
+
+    def set_cursor(self, line: int, column: int) -> None:
+        self._line, self._column = line - 1, column - 1
+
+    def write(self, codes: Sequence[int]) -> None:
+        """Draw character `codes` at the cursor and advance, taking the driver's time; past column 21 is cut off."""
+        line, column = self._line, self._column
+        drawn = list(codes[:max(0, COLUMNS - column)])
+        self._codes[line][column:column + len(drawn)] = drawn
+        self._column += len(codes)
+        self.mcu.spend_cycles(len(drawn) * CHARACTER_CYCLES)
+        text = "".join(font5x7.shows_as(code) for code in drawn)
+        self.history.append(Write(self.mcu.sim.time(), line + 1, column + 1, text))
+
+    # -------------------------------------------------------------- what a person sees
+    @property
+    def lines(self) -> list[str]:
+        """The 8 text lines, 21 characters each (blank before GLCD_Initial)."""
+        return ["".join(font5x7.shows_as(code) for code in codes) for codes in self._codes]
+
+    def line(self, n: int) -> str:
+        """Text line `n` (1..8, as the workshop numbers them), without trailing blanks."""
+        if not isinstance(n, int) or not 1 <= n <= LINES:
+            raise IndexError(f"the APP023's screen has lines 1..{LINES}; got {n!r}")
+        return self.lines[n - 1].rstrip()
+
+    def text(self) -> str:
+        """The whole screen as 8 lines of text."""
+        return "\n".join(self.lines)
+
+    def __str__(self) -> str:
+        state = "" if self.initialised else " (off: GLCD_Initial() not called)"
+        return "\n".join([f"┌{'─' * COLUMNS}┐{state}", *(f"│{text}│" for text in self.lines), f"└{'─' * COLUMNS}┘"])
+
+    def pixels(self) -> np.ndarray:
+        """The 64 x 128 pixels (True = dark), drawn with the 5x7 font in 6x8 cells."""
+        screen = np.zeros((HEIGHT_PX, WIDTH_PX), dtype=bool)
+        rows = np.arange(font5x7.HEIGHT)
+        for line, codes in enumerate(self._codes):
+            for column, code in enumerate(codes):
+                x, y = column * CELL_WIDTH, line * CELL_HEIGHT
+                for dx, bits in enumerate(font5x7.glyph(code)):
+                    screen[y:y + font5x7.HEIGHT, x + dx] = (bits >> rows) & 1
+        return screen
+
+    def picture(self, ax: Axes | None = None, *, scale: float = 4.0) -> Figure:
+        """Draw the module as it looks: dark pixels on the yellow-green backlight (grey-green when off)."""
+        import matplotlib.pyplot as plt
+        from matplotlib.patches import FancyBboxPatch
+
+        if ax is None:
+            figure = plt.figure(figsize=(WIDTH_PX * scale / 100 + 0.4, HEIGHT_PX * scale / 100 + 0.4), dpi=100)
+            ax = figure.add_axes((0, 0, 1, 1))
+        figure = ax.figure
+        on = self.initialised and self.backlight
+        background, ink = ("#b5d334", "#1d2a10") if on else ("#8e9a86", "#3c4436")
+        image = np.empty((HEIGHT_PX, WIDTH_PX, 3))
+        image[:] = _rgb(background)
+        image[self.pixels()] = _rgb(ink)
+        margin = 6
+        ax.add_patch(FancyBboxPatch((-margin, -margin), WIDTH_PX + 2 * margin, HEIGHT_PX + 2 * margin,
+                                    boxstyle="round,pad=2", facecolor="#202020", edgecolor="#505050", linewidth=2))
+        ax.imshow(image, extent=(0, WIDTH_PX, HEIGHT_PX, 0), interpolation="nearest", zorder=2)
+        ax.set_xlim(-margin - 3, WIDTH_PX + margin + 3)
+        ax.set_ylim(HEIGHT_PX + margin + 3, -margin - 3)
+        ax.set_aspect("equal")
+        ax.axis("off")
+        return figure
+
+    def save_png(self, path: str | Path, *, scale: float = 4.0) -> Path:
+        """Save `picture()` as a PNG file."""
+        import matplotlib.pyplot as plt
+
+        figure = self.picture(scale=scale)
+        figure.savefig(path)
+        plt.close(figure)
+        return Path(path)
+
+
+def _rgb(colour: str) -> tuple[float, float, float]:
+    return tuple(int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5))    # type: ignore[return-value]
+
+
+_SCREENS: weakref.WeakKeyDictionary[PIC18F8680, GLCD] = weakref.WeakKeyDictionary()
+
+
+def attach_glcd(mcu: PIC18F8680) -> GLCD:
+    """Wire a GLCD to `mcu` (on the APP023 its ports drive the module)."""
+    if mcu in _SCREENS:
+        raise ValueError(f"{mcu.name} already has its GLCD")
+    screen = _SCREENS[mcu] = GLCD(mcu)
+    return screen
+
+
+# ------------------------------------------------------------------ APP023_GLCD.h
+def _screen(cycles: int, *, before_initial: bool = False) -> GLCD:
+    mcu = current_mcu()
+    screen = _SCREENS.get(mcu)
+    if screen is None:
+        raise RuntimeError(f"{mcu.name} has no GLCD: the GLCD functions need firmware running on an APP023 board")
+    if not screen.initialised and not before_initial:
+        raise NotInitialised("the GLCD is not set up yet: call GLCD_Initial() first, as EX1.C does")
+    mcu.spend_cycles(CALL_CYCLES + cycles)
+    return screen
+
+
+def _codes(text: Any, function: str) -> list[int]:
+    """A C string as character codes, up to its NUL: from a str, bytes or a list of ints (0..255)."""
+    if isinstance(text, str):
+        try:
+            codes = list(text.encode("latin-1"))
+        except UnicodeEncodeError:
+            raise ValueError(f"{function}: the GLCD shows one byte per character (0..255); "
+                             f"{text!r} has characters outside that") from None
+    elif isinstance(text, (bytes, bytearray)):
+        codes = list(text)
+    elif isinstance(text, (list, tuple)) and all(isinstance(c, int) and not isinstance(c, bool) for c in text):
+        codes = list(text)
+        if any(not 0 <= c <= 0xFF for c in codes):
+            raise ValueError(f"{function}: a C string holds bytes 0..255; got {text!r}")
+    else:
+        raise TypeError(f"{function} takes a string (str, bytes, or a list of character codes); got {text!r}")
+    return codes[:codes.index(0)] if 0 in codes else codes
+
+
+def GLCD_Initial() -> None:
+    """Set the GLCD up: clear the screen, cursor to line 1 column 1, backlight on."""
+    _screen(INITIAL_CYCLES, before_initial=True).initial()
+
+
+def setcurGLCD(line: int, column: int) -> None:
+    """Put the cursor on `line` (1..8) at `column` (1..21)."""
+    valid = all(isinstance(v, int) and not isinstance(v, bool) for v in (line, column))
+    if not valid or not (1 <= line <= LINES and 1 <= column <= COLUMNS):
+        raise ValueError(f"setcurGLCD({line!r}, {column!r}): lines are numbered 1..{LINES} and columns "
+                         f"1..{COLUMNS} on the APP023's {LINES}x{COLUMNS} screen")
+    _screen(CURSOR_CYCLES).set_cursor(line, column)
+
+
+def putsGLCD(text: str | bytes | Sequence[int]) -> None:
+    """Write a string (from RAM) at the cursor; it stops at a NUL, and what passes column 21 is cut off."""
+    codes = _codes(text, "putsGLCD")
+    _screen(0).write(codes)
+
+
+def putrsGLCD(text: str | bytes | Sequence[int]) -> None:
+    """Write a string from program memory (ROM): the same as putsGLCD here."""
+    codes = _codes(text, "putrsGLCD")
+    _screen(0).write(codes)
+
+
+def putcGLCD(character: int | str) -> None:
+    """Write one character (a code 0..255 or a 1-character str) at the cursor."""
+    code = ord(character) if isinstance(character, str) and len(character) == 1 else character
+    if not isinstance(code, int) or isinstance(code, bool) or not 0 <= code <= 0xFF:
+        raise ValueError(f"putcGLCD takes one character: a code 0..255 or a 1-character string; got {character!r}")
+    _screen(0).write([code])
+
+
+__all__ = ["GLCD_Initial", "putcGLCD", "putrsGLCD", "putsGLCD", "setcurGLCD"]

@@ -1,0 +1,533 @@
+"""A CAN bus on the simulated clock: arbitration, ACK, error frames and fault confinement, frame by frame.
+
+A frame holds the bus for its exact stuffed length plus intermission at the bus bit rate; who wins,
+who ACKs and who flags an error is decided at SOF from each node's mode, error state and bit timing.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Protocol
+
+from appsim.can.bits import INTERMISSION_BITS, frame_bits
+from appsim.can.bittiming import BitTiming, BitTimingError
+from appsim.chip.ecan.controller import ECAN, Mode
+from appsim.can.frame import CanFrame
+from appsim.chip.mcu import PIC18F8680
+from appsim.sim import PS_PER_SECOND, Simulator, Timer
+
+ERROR_FLAG_BITS = 6
+ERROR_DELIMITER_BITS = 8
+SUSPEND_TRANSMISSION_BITS = 8
+BUS_IDLE_BITS = 11                  # mode changes, bus-off recovery: 11 consecutive recessive bits
+DESTROYED_AT_BIT = 10               # where a node at the wrong bit rate typically flags a stuff error
+
+
+@dataclass(frozen=True, slots=True)
+class BusEvent:
+    """One entry of the bus trace: a frame that went through, or one that ended in an error frame."""
+
+    start_ps: int
+    end_ps: int                      # end of EOF (frame) or of the error delimiter (error)
+    sender: str
+    frame: CanFrame
+    acked_by: tuple[str, ...] = ()
+    error: str = ""                  # "" for a good frame, else what went wrong, in CAN terms
+    received: tuple[tuple[str, str], ...] = ()   # (node, what its acceptance logic did)
+
+    @property
+    def ok(self) -> bool:
+        return not self.error
+
+    def __str__(self) -> str:
+        time = f"{self.start_ps / PS_PER_SECOND:12.6f}"
+        if self.error:
+            return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}"
+        acks = ",".join(self.acked_by) or "-"
+        return f"{time}  {self.sender:>10}  {self.frame}  ACK by {acks}"
+
+
+class _Port(Protocol):
+    """A node's attachment to the bus: what the protocol engine asks of a transmitter and a receiver."""
+
+    name: str
+    rate_ok: bool
+    suspend_until: int
+
+    @property
+    def mode(self) -> Mode: ...
+    @property
+    def bus_off(self) -> bool: ...
+    @property
+    def error_passive(self) -> bool: ...
+    def pending(self) -> tuple[str, CanFrame] | None:
+        """The buffer and frame this node would send next, if any."""
+    def started(self, buffer: str) -> None: ...
+    def lost(self, buffer: str) -> None: ...
+    def succeeded(self, buffer: str) -> None: ...
+    def failed(self, buffer: str, tec_increment: int) -> None: ...
+    def receive(self, frame: CanFrame) -> str:
+        """A frame went through: take it; returns what the node did with it, for the trace."""
+    def receive_error(self, rec_increment: int) -> None: ...
+    def activity(self) -> None: ...
+    def notify(self) -> None: ...
+
+
+@dataclass(eq=False)
+class _BoardPort(_Port):
+    """A PIC18F8680's ECAN module on the bus."""
+
+    mcu: PIC18F8680
+    rate_ok: bool = True
+    suspend_until: int = 0
+    loop_busy_until: int = 0
+    mode_timer: Timer | None = None
+    ecan: ECAN = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.ecan = self.mcu.ecan
+
+    @property
+    def name(self) -> str:
+        return self.mcu.name
+
+    @property
+    def mode(self) -> Mode:
+        return self.ecan.opmode
+
+    @property
+    def bus_off(self) -> bool:
+        return self.ecan.bus_off
+
+    @property
+    def error_passive(self) -> bool:
+        return self.ecan.error_passive
+
+    def pending(self) -> tuple[str, CanFrame] | None:
+        buffer = self.ecan.next_transmission()
+        return None if buffer is None else (buffer, self.ecan.frame_in(buffer))
+
+    def started(self, buffer: str) -> None:
+        self.ecan.transmission_started(buffer)
+
+    def lost(self, buffer: str) -> None:
+        self.ecan.arbitration_lost(buffer)
+        self.mcu.changed()
+
+    def succeeded(self, buffer: str) -> None:
+        self.ecan.transmission_succeeded(buffer)
+
+    def failed(self, buffer: str, tec_increment: int) -> None:
+        self.ecan.transmission_failed(buffer, tec_increment=tec_increment)
+
+    def receive(self, frame: CanFrame) -> str:
+        rec = self.ecan.rec
+        reception = self.ecan.frame_received(frame)
+        if reception.filter is not None or self.ecan.rec != rec:    # a rejected frame changes nothing else
+            self.mcu.changed()
+        return str(reception)
+
+    def receive_error(self, rec_increment: int) -> None:
+        self.ecan.receive_error(rec_increment=rec_increment)
+        self.mcu.changed()
+
+    def activity(self) -> None:
+        if self.ecan.bus_activity():
+            self.mcu.changed()
+
+    def notify(self) -> None:
+        self.mcu.changed()
+
+
+class Outside(Protocol):
+    """The far side of a link: the rest of a bus that is not simulated (see `appsim.bus.link`)."""
+
+    name: str
+
+    def frame_from_simulation(self, frame: CanFrame) -> None:
+        """A frame that went through on the simulated bus, to send outside."""
+
+
+@dataclass(eq=False)
+class _LinkPort(_Port):
+    """The outside world seen from the simulated bus: one error-active node that ACKs every frame
+    and sends the frames that arrive from outside, retrying them as any node would."""
+
+    outside: Outside
+    queue: deque[CanFrame] = field(default_factory=deque)
+    rate_ok: bool = True
+    suspend_until: int = 0
+    mode: Mode = Mode.NORMAL
+    bus_off: bool = False
+    error_passive: bool = False
+
+    @property
+    def name(self) -> str:
+        return self.outside.name
+
+    def pending(self) -> tuple[str, CanFrame] | None:
+        return ("outside", self.queue[0]) if self.queue else None
+
+    def started(self, buffer: str) -> None: ...
+    def lost(self, buffer: str) -> None: ...
+    def failed(self, buffer: str, tec_increment: int) -> None: ...
+    def receive_error(self, rec_increment: int) -> None: ...
+    def activity(self) -> None: ...
+    def notify(self) -> None: ...
+
+    def succeeded(self, buffer: str) -> None:
+        self.queue.popleft()
+
+    def receive(self, frame: CanFrame) -> str:
+        self.outside.frame_from_simulation(frame)
+        return "sent outside"
+
+
+def oscillator_tolerance(timing: BitTiming) -> Fraction:
+    """The largest bit-rate deviation a node tolerates (CAN 2.0: min of the SJW and phase-segment limits)."""
+    n, ps2 = timing.tq_per_bit, timing.effective_seg2ph
+    return min(Fraction(timing.sjw, 20 * n),
+               Fraction(min(timing.seg1ph, ps2), 2 * (13 * n - ps2)))
+
+
+class Bus:
+    """The wire and its protocol engine: every attached node's ECAN is driven from here."""
+
+    def __init__(self, sim: Simulator, bit_rate: int = 125_000):
+        if PS_PER_SECOND % bit_rate:
+            raise ValueError(f"a bus bit rate of {bit_rate} bit/s has no whole bit time in picoseconds")
+        self.sim = sim
+        self.bit_rate = bit_rate
+        self.bit_ps = PS_PER_SECOND // bit_rate
+        sim.quantum_ps = max(sim.quantum_ps, self.bit_ps)
+        # While a frame or error frame holds the bus, what a node does (TXREQ, aborts, mode requests)
+        # takes effect at the next SOF at the earliest: no other node can see it before busy_until.
+        sim.quiet_until = lambda: self.busy_until
+        self.ports: list[_Port] = []
+        self._by_ecan: dict[int, _BoardPort] = {}
+        self.trace: list[BusEvent] = []
+        self.loopback_trace: list[BusEvent] = []
+        self.busy_until = 0          # end of the intermission after the last frame or error frame
+        self._arbitration: Timer | None = None
+        self._idle_timer: Timer | None = None
+
+    # ------------------------------------------------------------------ nodes
+    def attach(self, mcu: PIC18F8680) -> PIC18F8680:
+        port = _BoardPort(mcu)
+        self.ports.append(port)
+        self._by_ecan[id(mcu.ecan)] = port
+        mcu.ecan.listener = self
+        return mcu
+
+    def node(self, name: str) -> PIC18F8680:
+        for port in self.ports:
+            if port.name == name and isinstance(port, _BoardPort):
+                return port.mcu
+        raise KeyError(f"no node named {name!r} on this bus")
+
+    def boards(self) -> list[PIC18F8680]:
+        """The simulated boards on this bus, in the order they were attached."""
+        return [port.mcu for port in self.ports if isinstance(port, _BoardPort)]
+
+    def attach_outside(self, outside: Outside) -> None:
+        """Join the rest of a real bus (see `appsim.bus.link`): it ACKs every frame and sends its own."""
+        self.ports.append(_LinkPort(outside))
+
+    def from_outside(self, outside: Outside, frame: CanFrame) -> None:
+        """A frame arrived from outside at the simulated present: it contends for the bus."""
+        port = next(p for p in self.ports if isinstance(p, _LinkPort) and p.outside is outside)
+        port.queue.append(frame)
+        self._schedule_arbitration(max(self.sim.time(), self.busy_until))
+
+    def _rate_ok(self, port: _BoardPort) -> bool:
+        try:
+            timing = port.ecan.bit_timing()
+        except BitTimingError:
+            return False
+        if timing.problems():
+            return False
+        error = abs(timing.bit_rate(port.mcu.fosc) - self.bit_rate) / self.bit_rate
+        return error <= oscillator_tolerance(timing)
+
+    def _node_bit_ps(self, port: _BoardPort) -> int:
+        return port.ecan.bit_timing().bit_time_ps(port.mcu.fosc)
+
+    # ------------------------------------------------------------------ what the ECAN asks for
+    def mode_requested(self, ecan: ECAN) -> None:
+        """OPMODE follows REQOP after 11 consecutive recessive bits. A module that has been on the bus
+        counts the recessive bits that end every frame (ACK delimiter, EOF, intermission) or error frame
+        (delimiter, intermission): it switches when the bus goes idle. One coming from Configuration or
+        Disable mode starts counting at the request, at its own bit time."""
+        port = self._by_ecan[id(ecan)]
+        if port.mode_timer is not None:
+            return
+        now = self.sim.time()
+        if port.mode in (Mode.CONFIGURATION, Mode.DISABLE):
+            when = max(now, self.busy_until) + BUS_IDLE_BITS * self._node_bit_ps(port)
+        else:
+            when = max(now, self.busy_until)
+        port.mode_timer = self.sim.call_at(when, lambda: self._change_mode(port))
+
+    def _change_mode(self, port: _BoardPort) -> None:
+        """OPMODE follows REQOP once the bus is idle (a frame in progress is finished first)."""
+        port.mode_timer = None
+        if self.busy_until > self.sim.now:
+            port.mode_timer = self.sim.call_at(self.busy_until, lambda: self._change_mode(port))
+            return
+        port.ecan.enter_requested_mode()
+        if port.ecan.opmode in (Mode.NORMAL, Mode.LISTEN_ONLY):
+            port.rate_ok = self._rate_ok(port)
+        port.mcu.changed()
+        self.transmit_requested(port.ecan)
+
+    def transmit_requested(self, ecan: ECAN) -> None:
+        port = self._by_ecan[id(ecan)]
+        if ecan.opmode == Mode.LOOPBACK:
+            self._loopback(port)
+        elif ecan.opmode == Mode.NORMAL:
+            self._schedule_arbitration(max(self.sim.time(), self.busy_until, port.suspend_until))
+
+    # ------------------------------------------------------------------ loopback: off the bus
+    def _loopback(self, port: _BoardPort) -> None:
+        """TX buffer -> MAB -> filters -> RX buffer, at the node's own bit rate, never on the bus."""
+        ecan = port.ecan
+        buffer = ecan.next_transmission()
+        start = self.sim.time()
+        if buffer is None or ecan.on_wire is not None or port.loop_busy_until > start:
+            return
+        frame = ecan.frame_in(buffer)
+        ecan.transmission_started(buffer)
+        end = start + frame_bits(frame) * self._node_bit_ps(port)
+        port.loop_busy_until = end + INTERMISSION_BITS * self._node_bit_ps(port)
+
+        def done() -> None:
+            ecan.transmission_succeeded(buffer)       # the ACK comes from the module itself
+            reception = ecan.frame_received(frame)
+            self.loopback_trace.append(BusEvent(start, end, port.name, frame, (port.name,), "",
+                                                ((port.name, str(reception)),)))
+            port.mcu.changed()
+            self.sim.call_at(port.loop_busy_until, lambda: self._loopback(port))
+
+        self.sim.call_at(end, done)
+
+    # ------------------------------------------------------------------ on the bus
+    def _schedule_arbitration(self, time: int) -> None:
+        if self._arbitration is not None and not self._arbitration.cancelled:
+            if self._arbitration.time <= time:
+                return
+            self._arbitration.cancel()
+        self._arbitration = self.sim.call_at(time, self._start_of_frame)
+
+    def _on_bus(self, port: _Port, *modes: Mode) -> bool:
+        return port.mode in modes and not port.bus_off
+
+    def _start_of_frame(self) -> None:
+        """SOF: the pending frames arbitrate; the outcome of the winner's frame is fixed here."""
+        self._arbitration = None
+        now = self.sim.now
+        if self.busy_until > now:
+            self._schedule_arbitration(self.busy_until)
+            return
+        contenders, waiting = [], []
+        for port in self.ports:
+            if not self._on_bus(port, Mode.NORMAL):
+                continue
+            pending = port.pending()
+            if pending is None:
+                continue
+            if port.suspend_until <= now:
+                contenders.append((port, pending))
+            else:
+                waiting.append(port)
+        if not contenders:
+            if waiting:
+                self._schedule_arbitration(min(p.suspend_until for p in waiting))
+            return
+        self._stop_idle_count()
+        for port in self.ports:
+            port.activity()
+        entries = []
+        for port, (buffer, frame) in contenders:
+            port.started(buffer)
+            entries.append((_arbitration_key(frame), port, buffer, frame))
+        entries.sort(key=lambda e: e[0])
+        key, sender, buffer, frame = entries[0]
+        for loser_key, port, lost_buffer, _ in entries[1:]:
+            if loser_key == key:
+                continue   # same identifier: both keep sending; settled below as a collision
+            lost_at = now + _first_difference(key, loser_key) * self.bit_ps
+            self.sim.call_at(lost_at, lambda p=port, b=lost_buffer: p.lost(b))
+        same_id = [e for e in entries[1:] if e[0] == key]
+        self._transmit(now, sender, buffer, frame, same_id)
+
+    def _transmit(self, start: int, sender: _Port, buffer: str, frame: CanFrame,
+                  same_id: list[tuple[int, _Port, str, CanFrame]]) -> None:
+        bits = frame_bits(frame)
+        others = [p for p in self.ports if p is not sender and all(p is not e[1] for e in same_id)]
+        listeners = [p for p in others if self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
+        if not sender.rate_ok:
+            # Nobody at the bus bit rate can read this frame: every active node flags it.
+            flaggers = [p for p in listeners if p.rate_ok and p.mode == Mode.NORMAL and not p.error_passive]
+            if flaggers:
+                self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
+                                  "sent at the wrong bit rate: the other nodes flagged it",
+                                  flaggers, listeners, tec_increment=8)
+                return
+        wrong_rate = [p for p in listeners if not p.rate_ok]
+        destroyers = [p for p in wrong_rate if p.mode == Mode.NORMAL and not p.error_passive]
+        if destroyers and sender.rate_ok:
+            self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
+                              f"destroyed by error flags of {', '.join(p.name for p in destroyers)} "
+                              "(bit timing does not match the bus)", destroyers, listeners, tec_increment=8)
+            return
+        if same_id and any(e[3] != frame for e in same_id):
+            colliders = [e[1] for e in same_id]
+            self._error_frame(start, 13, sender, buffer, frame, "bit error",
+                              f"two nodes sent identifier 0x{frame.can_id:X} at once with different "
+                              f"contents ({', '.join(p.name for p in [sender] + colliders)})",
+                              colliders, listeners, tec_increment=8, also_failed=same_id)
+            return
+        good = [p for p in listeners if p.rate_ok]
+        ackers = tuple(p.name for p in good if p.mode == Mode.NORMAL)
+        if isinstance(sender, _LinkPort):
+            ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
+        if not ackers:
+            self._ack_error(start, bits, sender, buffer, frame, good, wrong_rate)
+            return
+        end = start + bits * self.bit_ps
+        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
+
+        def end_of_frame() -> None:
+            received = [(port.name, port.receive(frame)) for port in good]
+            self._flag_wrong_rate(wrong_rate)
+            for _, port, twin, _ in [(None, sender, buffer, None)] + same_id:
+                port.succeeded(twin)
+                self._after_transmit(port)
+            self.trace.append(BusEvent(start, end, sender.name, frame, ackers, "", tuple(received)))
+            self._bus_idle()
+
+        self.sim.call_at(end, end_of_frame)
+
+    def _ack_error(self, start: int, bits: int, sender: _Port, buffer: str, frame: CanFrame,
+                   good: list[_Port], wrong_rate: list[_Port]) -> None:
+        """Nobody ACKed. An error-active sender's flag makes the frame invalid for everyone; an
+        error-passive sender's recessive flag leaves it valid for receivers, and its TEC unchanged."""
+        passive = sender.error_passive
+        flag_start = start + (bits - 8) * self.bit_ps          # the ACK delimiter
+        end = flag_start + (ERROR_FLAG_BITS + ERROR_DELIMITER_BITS) * self.bit_ps
+        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
+
+        def end_of_error() -> None:
+            received = []
+            for port in good:      # listen-only nodes: they never ACK
+                if passive:
+                    received.append((port.name, port.receive(frame)))
+                else:
+                    port.receive_error(rec_increment=0)
+                    received.append((port.name, "form error: active error flag in the ACK delimiter"))
+            self._flag_wrong_rate(wrong_rate)
+            sender.failed(buffer, tec_increment=0 if passive else 8)
+            self._after_transmit(sender)
+            self.trace.append(BusEvent(start, end, sender.name, frame, (), "ACK error: no node acknowledged",
+                                       tuple(received)))
+            self._bus_idle()
+
+        self.sim.call_at(end, end_of_error)
+
+    def _error_frame(self, start: int, at_bit: int, sender: _Port, buffer: str, frame: CanFrame,
+                     sender_error: str, why: str, flaggers: list[_Port], listeners: list[_Port], *,
+                     tec_increment: int, also_failed: list | None = None) -> None:
+        """The frame is cut at `at_bit` by error flags: 6 dominant bits, echoes, 8-bit delimiter."""
+        flag_bits = 2 * ERROR_FLAG_BITS
+        end = start + (at_bit + flag_bits + ERROR_DELIMITER_BITS) * self.bit_ps
+        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
+
+        def end_of_error() -> None:
+            received = []
+            for port in listeners:
+                if port.mode == Mode.NORMAL:
+                    echo = 8 if port in flaggers and not port.rate_ok else 0
+                    port.receive_error(rec_increment=1 + echo)
+                else:
+                    port.receive_error(rec_increment=0)
+                received.append((port.name, "error frame"))
+            for port, failed_buffer in [(sender, buffer)] + [(e[1], e[2]) for e in also_failed or []]:
+                port.failed(failed_buffer, tec_increment=tec_increment)
+                self._after_transmit(port)
+            self.trace.append(BusEvent(start, end, sender.name, frame, (), f"{sender_error}: {why}",
+                                       tuple(received)))
+            self._bus_idle()
+
+        self.sim.call_at(end, end_of_error)
+
+    def _flag_wrong_rate(self, ports: list[_Port]) -> None:
+        """Error-passive nodes at the wrong bit rate see garbage: REC += 1 (listen-only: IRXIF only)."""
+        for port in ports:
+            port.receive_error(rec_increment=1 if port.mode == Mode.NORMAL else 0)
+
+    def _after_transmit(self, port: _Port) -> None:
+        """An error-passive transmitter waits 8 more bits (suspend transmission) before its next SOF."""
+        if port.error_passive:
+            port.suspend_until = self.busy_until + SUSPEND_TRANSMISSION_BITS * self.bit_ps
+        port.notify()
+
+    # ------------------------------------------------------------------ idle bus, bus-off recovery
+    def _bus_idle(self) -> None:
+        """After each frame or error frame: one sequence of 11 recessive bits; next SOF if anyone waits."""
+        for port in self.ports:
+            if port.bus_off:
+                self._recover(port, 1)
+        pending = [p for p in self.ports if self._on_bus(p, Mode.NORMAL) and p.pending() is not None]
+        if pending:
+            self._schedule_arbitration(max(self.busy_until, min(p.suspend_until for p in pending)))
+        self._start_idle_count()
+
+    def _start_idle_count(self) -> None:
+        if self._idle_timer is not None:
+            self._idle_timer.cancel()
+            self._idle_timer = None
+        if any(p.bus_off for p in self.ports):
+            self._idle_timer = self.sim.call_at(self.busy_until + BUS_IDLE_BITS * self.bit_ps,
+                                                self._idle_sequence)
+
+    def _idle_sequence(self) -> None:
+        self._idle_timer = None
+        for port in self.ports:
+            if port.bus_off:
+                self._recover(port, 1)
+        if any(p.bus_off for p in self.ports):
+            self._idle_timer = self.sim.call_after(BUS_IDLE_BITS * self.bit_ps, self._idle_sequence)
+
+    def _stop_idle_count(self) -> None:
+        """A SOF ends the idle period: stop counting recessive sequences for bus-off nodes."""
+        if self._idle_timer is not None:
+            self._idle_timer.cancel()
+            self._idle_timer = None
+
+    def _recover(self, port: _BoardPort, sequences: int) -> None:
+        port.ecan.bus_off_recovery(sequences)
+        if not port.ecan.bus_off:
+            port.mcu.changed()
+            self.transmit_requested(port.ecan)
+
+    # ------------------------------------------------------------------ reading the trace
+    def frames(self) -> list[BusEvent]:
+        """The frames that went through (ACKed, no error)."""
+        return [event for event in self.trace if event.ok]
+
+
+def _arbitration_key(frame: CanFrame) -> int:
+    """The arbitration field as the wire sends it, left-aligned in 32 bits: lower wins.
+
+    Standard: ID10..0, RTR, IDE=0. Extended: ID28..18, SRR=1, IDE=1, ID17..0, RTR. So at equal base
+    ID a standard data frame beats an extended one, and a data frame beats a remote one.
+    """
+    if frame.extended:
+        return (frame.base_id << 21) | (1 << 20) | (1 << 19) | ((frame.can_id & 0x3FFFF) << 1) | frame.remote
+    return (frame.can_id << 21) | (frame.remote << 20)
+
+
+def _first_difference(a: int, b: int) -> int:
+    """Bits from SOF to the arbitration bit where two keys first differ (SOF is bit 0)."""
+    return 1 + (32 - (a ^ b).bit_length())

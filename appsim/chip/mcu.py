@@ -1,0 +1,216 @@
+"""The PIC18F8680 as firmware sees it: special function registers by address and name, time in cycles.
+
+Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
+from the same place in the firmware, with nothing changed since) parks the firmware until a
+peripheral event changes something it reads: a busy-wait costs one loop turn per event, not per cycle.
+"""
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterable
+from types import CodeType
+from typing import Any, Protocol
+
+import greenlet
+
+from appsim.chip.ecan import registers as ecan_registers
+from appsim.chip.ecan.controller import ECAN
+from appsim.sim import PS_PER_SECOND, Process, Simulator
+
+FOSC_HZ = 40_000_000            # APP023: 10 MHz crystal with the 4x PLL
+SFR_ACCESS_CYCLES = 2           # a C statement touching an SFR: MOVFF / MOVF + MOVWF, with banking
+CALL_CYCLES = 10                # CALL/RETURN and argument passing of a C18 library function
+
+_getcurrent = greenlet.getcurrent
+
+
+class Peripheral(Protocol):
+    """Anything on the SFR bus: reads and writes bytes at its addresses."""
+
+    def read(self, address: int) -> int: ...
+    def write(self, address: int, value: int) -> None: ...
+
+
+class NotOnABoard(RuntimeError):
+    """A firmware function was called outside firmware running on a simulated board."""
+
+
+class SFRNames:
+    """Registers by their datasheet names, on top of `read` and `write` by address."""
+
+    sfr_addresses: dict[str, int]
+
+    def read(self, address: int, site: object = None) -> int: ...
+    def write(self, address: int, value: int) -> None: ...
+
+    def address_of(self, name: str) -> int:
+        try:
+            return self.sfr_addresses[name]
+        except KeyError:
+            raise KeyError(f"the PIC18F8680 has no special function register named {name!r}") from None
+
+    def read_name(self, name: str) -> int:
+        return self.read(self.address_of(name))
+
+    def write_name(self, name: str, value: int) -> None:
+        self.write(self.address_of(name), value)
+
+    def set_bits(self, name: str, mask: int, on: bool) -> None:
+        """Set (or clear) the `mask` bits of a register, read-modify-write, as `BSF`/`BCF` on it would."""
+        value = self.read_name(name)
+        self.write_name(name, value | mask if on else value & ~mask)
+
+
+class PIC18F8680(SFRNames):
+    """One microcontroller on the simulated clock, with its ECAN module mapped at F00h..F77h, FA3h..FA5h."""
+
+    def __init__(self, sim: Simulator, name: str = "node", *, fosc: int = FOSC_HZ):
+        self.sim = sim
+        self.name = name
+        self.fosc = fosc
+        self.tcy_ps = 4 * PS_PER_SECOND // fosc
+        self._access_ps = SFR_ACCESS_CYCLES * self.tcy_ps
+        self.ecan = ECAN()
+        self.sfr_addresses: dict[str, int] = {}
+        self._devices: dict[int, Peripheral] = {}
+        self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
+        self.version = 0
+        self._seen: dict[int, int] = {}                 # address -> `version` when the firmware last read it
+        # What a polling loop reads again at `_polled_version`: values, (address, firmware location), and
+        # whether they tell all (no time-varying register, none whose read has a side effect).
+        self._polled_version = -1
+        self._polled: dict[int, int] = {}
+        self._polled_sites: set[tuple[int, object]] = set()
+        self._polled_pure = True
+        self._parked_on: dict[int, int] | None = None       # what a parked loop read (None: wake on any change)
+        self.time_varying: set[int] = set()
+        self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
+        self.process: Process | None = None
+        self.on_changed: list[Callable[[], None]] = []
+
+    def map(self, device: Peripheral, registers: Iterable[tuple[str, int]]) -> None:
+        """Put a peripheral's registers (name, address) on the SFR bus."""
+        for name, address in registers:
+            self.sfr_addresses[name] = address
+            self._devices[address] = device
+
+    # -------------------------------------------------------------- firmware access
+    def read(self, address: int, site: object = None) -> int:
+        """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox)."""
+        device = self._devices.get(address)
+        process = self.process
+        if process is not None and _getcurrent() is process:
+            process.local_time += self._access_ps     # process.spend, its common case inline
+            if process.local_time > process.horizon:
+                process.spend(0)
+            again = self._seen.get(address) == self.version    # after spend: other firmware and events may have run
+            if again:
+                self._read_again(process, address, site)
+            self._seen[address] = self.version
+        else:
+            again = False
+        value = device.read(address) if device is not None else 0
+        if again:
+            self._polled[address] = value       # what the polling loop saw, to tell a change it would see
+        return value
+
+    def _read_again(self, process: Process, address: int, site: object) -> None:
+        """A register read again with nothing changed since: from the same place in the firmware, that
+        is a polling loop, parked until a change that it would see."""
+        if self._polled_version != self.version:
+            self._polled_version = self.version
+            self._polled, self._polled_sites, self._polled_pure = {}, set(), True
+        if address in self.time_varying:
+            self._polled_pure = False       # the loop sees time pass: any change must wake it
+            return
+        if address in self.read_side_effects:
+            self._polled_pure = False
+        site = (address, _firmware_location() if site is None else site)
+        if site not in self._polled_sites:
+            self._polled_sites.add(site)
+            return
+        self._parked_on = self._polled if self._polled_pure else None
+        process.park()
+
+    def write(self, address: int, value: int) -> None:
+        process = self.process
+        if process is not None and _getcurrent() is process:
+            process.spend(self._access_ps)
+        self.version += 1
+        device = self._devices.get(address)
+        if device is not None:
+            device.write(address, value & 0xFF)
+
+    def spend_cycles(self, cycles: int) -> None:
+        """Time the firmware spends computing (instruction cycles at Fosc/4)."""
+        process = self.process
+        if process is not None and _getcurrent() is process:
+            process.spend(cycles * self.tcy_ps)
+
+    # -------------------------------------------------------------- hardware side
+    def changed(self) -> None:
+        """A peripheral changed state the firmware can see: wake a parked firmware."""
+        self.version += 1
+        process = self.process
+        if process is not None and process.parked and self._loop_would_see_a_change():
+            process.wake()
+        for callback in self.on_changed:
+            callback()
+
+    def _loop_would_see_a_change(self) -> bool:
+        parked_on = self._parked_on
+        if parked_on is None:
+            return True
+        devices = self._devices
+        for address, value in parked_on.items():
+            device = devices.get(address)
+            if device is not None and device.read(address) != value:
+                return True
+        return False
+
+    def run(self, main: Callable[[], Any]) -> Process:
+        """Start firmware `main` on this MCU (after a reset, as programming the chip would)."""
+        if self.process is not None and not self.process.dead:
+            self.process.stop()
+        _IS_KIT.clear()          # a cache: new firmware brings new code objects (a grader loads thousands)
+        self.process = self.sim.start(self.name, main, context=self)
+        return self.process
+
+
+# id(code object) -> (that code object, kept alive so the id stays its own; is it this package's code?).
+# Keyed by id: a code object's own hash is recomputed from its whole content on every call.
+_IS_KIT: dict[int, tuple[CodeType, bool]] = {}
+
+
+def _firmware_location() -> tuple[tuple[int, int], ...]:
+    """Where in the firmware (outside this package) the current access comes from: its call stack,
+    as (id of the code object, instruction offset) of each firmware frame."""
+    frame = sys._getframe(2)
+    location = []
+    is_kit = _IS_KIT
+    while frame is not None:
+        code = frame.f_code
+        known = is_kit.get(id(code))
+        if known is None:
+            known = is_kit[id(code)] = (code, frame.f_globals.get("__name__", "").startswith("appsim."))
+        if not known[1]:
+            location.append((id(code), frame.f_lasti))
+        frame = frame.f_back
+    return tuple(location)
+
+
+def current_mcu() -> PIC18F8680:
+    """The MCU whose firmware is running now (what `CANSendMessage` and friends act on)."""
+    context = getattr(greenlet.getcurrent(), "context", None)
+    if isinstance(context, PIC18F8680):
+        return context
+    raise NotOnABoard(
+        "this is firmware: it runs on a simulated board, from main(). "
+        "Start it with a board's run(main) (or `appsim board FILE`), not by calling it directly.")
+
+
+def library_call() -> PIC18F8680:
+    """The MCU a C18 or AN738 library function acts on, after the CALL/RETURN and argument passing it costs."""
+    mcu = current_mcu()
+    mcu.spend_cycles(CALL_CYCLES)
+    return mcu

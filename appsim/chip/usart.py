@@ -1,0 +1,421 @@
+"""The PIC18F8680's USART in asynchronous mode at register level (TXSTA, RCSTA, SPBRG, TXREG, RCREG, BAUDCON, SPBRGH).
+
+Bytes leave through DSW2 to the PIC18F2550 (USB-CDC) or CON9 (RS-232) ends, and arrive from them; C18's usart.h drives it.
+"""
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from typing import NamedTuple
+
+from appsim.board.dsw2 import CON9, DSW2, USB
+from appsim.chip.interrupts import RCIF, TXIF, PeripheralInterrupts
+from appsim.chip.mcu import PIC18F8680, library_call
+from appsim.sim import PS_PER_SECOND, Timer
+
+_TXSTA, _RCSTA, _TXREG, _RCREG, _SPBRG = 0xFAC, 0xFAB, 0xFAD, 0xFAE, 0xFAF
+_BAUDCON, _SPBRGH = 0xF7E, 0xF7F
+REGISTERS: tuple[tuple[str, int], ...] = (
+    ("TXSTA", _TXSTA), ("RCSTA", _RCSTA), ("TXREG", _TXREG), ("RCREG", _RCREG), ("SPBRG", _SPBRG),
+    ("BAUDCON", _BAUDCON), ("SPBRGH", _SPBRGH))
+
+_CSRC, _TX9, _TXEN, _SYNC, _SENDB, _BRGH, _TRMT, _TX9D = 0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x02, 0x01   # TXSTA
+_SPEN, _RX9, _SREN, _CREN, _ADDEN, _FERR, _OERR, _RX9D = 0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x02, 0x01   # RCSTA
+_RCIDL, _SCKP, _BRG16, _WUE, _ABDEN = 0x40, 0x10, 0x08, 0x02, 0x01                                      # BAUDCON
+_TXSTA_WRITABLE = 0xFD                      # all but TRMT
+_RCSTA_WRITABLE = 0xF8                      # SPEN RX9 SREN CREN ADDEN; FERR OERR RX9D are read-only
+_BAUDCON_WRITABLE = _SCKP | _BRG16 | _WUE | _ABDEN
+FIFO_DEPTH = 2
+PC_BAUD = 19_200                            # the link's setting on the PC side: 19200 N 8 1
+
+BITFIELDS: dict[str, dict[str, tuple[int, int]]] = {
+    "TXSTA": {"TX9D": (0, 1), "TRMT": (1, 1), "BRGH": (2, 1), "SENDB": (3, 1), "SYNC": (4, 1), "TXEN": (5, 1),
+              "TX9": (6, 1), "CSRC": (7, 1)},
+    "RCSTA": {"RX9D": (0, 1), "OERR": (1, 1), "FERR": (2, 1), "ADDEN": (3, 1), "ADEN": (3, 1), "CREN": (4, 1),
+              "SREN": (5, 1), "RX9": (6, 1), "SPEN": (7, 1)},
+    "BAUDCON": {"ABDEN": (0, 1), "WUE": (1, 1), "BRG16": (3, 1), "SCKP": (4, 1), "RCIDL": (6, 1)},
+}
+
+
+class Received(NamedTuple):
+    """A byte in the receive FIFO, with the status bits that go with it."""
+
+    data: int
+    ninth: bool
+    framing_error: bool
+
+
+class SerialEnd:
+    """One place DSW2 can connect the USART to: the PIC18F2550 (USB-CDC) or CON9 (RS-232), seen from the PC.
+
+    `listeners` are called with (byte, time_ps) when a byte's stop bit leaves the USART, if DSW2 routes
+    the USART here. `write` sends bytes to the board at `baud` (8N1, back to back), starting at the
+    caller's present simulated time; the USART samples each frame at its own baud rate, so a firmware
+    with the wrong SPBRG receives garbage and framing errors, as with a real cable. Bytes that find
+    DSW2 routed elsewhere, SPEN or CREN off, or the receiver blocked by an overrun are counted in `lost`.
+    """
+
+    def __init__(self, usart: USART, route: str, place: str, *, baud: int = PC_BAUD):
+        self.usart = usart
+        self.route = route
+        self.place = place
+        self.baud = baud
+        self.listeners: list[Callable[[int, int], None]] = []
+        self.lost = 0
+        self._line_free_ps = 0
+
+    @property
+    def connected(self) -> bool:
+        """Whether DSW2 connects the USART to this end."""
+        return self.usart.dsw2.route == self.route
+
+    def bit_ps(self) -> int:
+        return round(PS_PER_SECOND / self.baud)
+
+    def write(self, data: bytes) -> None:
+        """Send `data` from the PC to the board's RX pin, one 8N1 frame after the other."""
+        if not isinstance(data, (bytes, bytearray)):
+            raise TypeError(f"{self.place}: write takes bytes (b'...'); got {data!r}")
+        sim = self.usart.mcu.sim
+        start = max(sim.time(), self._line_free_ps)
+        for byte in data:
+            sim.call_at(start, lambda byte=byte: self.usart.frame_starts(self, byte))
+            start += 10 * self.bit_ps()
+        self._line_free_ps = start
+
+    def __repr__(self) -> str:
+        return f"<SerialEnd {self.place}: {'connected' if self.connected else 'not connected'}, lost {self.lost}>"
+
+
+class USART:
+    """The USART (EUSART) of one PIC18F8680 in asynchronous mode, a Peripheral on its SFR bus.
+
+    Baud rate from SPBRG (SPBRGH:SPBRG when BAUDCON.BRG16 = 1) and BRGH, by the data sheet's formulas:
+    Fosc / (64 (n + 1)), Fosc / (16 (n + 1)) with BRGH or BRG16, Fosc / (4 (n + 1)) with both. At 40 MHz,
+    BRGH = 1 and SPBRG = 129 give 19230.8 baud: a frame (start, 8 data, stop) takes 520 µs.
+
+    Transmit: a byte written to TXREG moves to the shift register (TSR) as soon as it is empty with
+    SPEN = TXEN = 1; PIR1.TXIF reads 1 while TXEN = 1 and TXREG is empty, TXSTA.TRMT while the TSR is
+    empty. TX9 = 1 makes frames 11 bits (the ends receive the 8 data bits). Clearing TXEN or SPEN aborts
+    the byte being sent and empties TXREG.
+
+    Receive (CREN = 1, SPEN = 1): a 2-byte FIFO behind the receive shift register. PIR1.RCIF reads 1
+    while the FIFO holds a byte; RCSTA.FERR and RX9D belong to the byte at the top of the FIFO and
+    reading RCREG pops it. A byte completing while the FIFO is full sets OERR and is lost; while OERR
+    is set nothing more is received, until firmware clears CREN (which clears OERR), as on the chip.
+    SREN has no effect in asynchronous mode, so a receiver opened with USART_SINGLE_RX receives nothing.
+
+    Not simulated: synchronous mode (SYNC = 1 is refused with an error), address detection (ADDEN),
+    break characters (SENDB), auto-baud (ABDEN), wake-up (WUE); BAUDCON.RCIDL always reads 1. No
+    interrupts are taken (PIE1.TXIE/RCIE are stored only): firmware polls, as C18's functions do.
+    """
+
+    def __init__(self, mcu: PIC18F8680, interrupts: PeripheralInterrupts, dsw2: DSW2):
+        self.mcu = mcu
+        self.dsw2 = dsw2
+        self._txsta = 0
+        self._rcsta = 0
+        self._baudcon = 0
+        self._spbrg = self._spbrgh = 0
+        self._txreg: int | None = None          # a byte waiting in TXREG
+        self._sending: Timer | None = None      # the TSR's byte, until its stop bit ends
+        self._fifo: deque[Received] = deque()
+        self._last_read = 0
+        self._overrun = False
+        self.usb = SerialEnd(self, USB, "PIC18F2550 USB-CDC")
+        self.con9 = SerialEnd(self, CON9, "CON9 RS-232")
+        interrupts.provide(TXIF, lambda: bool(self._txsta & _TXEN) and self._txreg is None)
+        interrupts.provide(RCIF, lambda: bool(self._fifo))
+        mcu.read_side_effects.add(_RCREG)
+
+    # -------------------------------------------------------------- timing
+    def bit_ps(self) -> int:
+        """One bit at the baud rate SPBRG/SPBRGH, BRGH and BRG16 give."""
+        brg16, brgh = bool(self._baudcon & _BRG16), bool(self._txsta & _BRGH)
+        divisor = 4 if brg16 and brgh else 16 if brg16 or brgh else 64
+        n = (self._spbrgh << 8 | self._spbrg) if brg16 else self._spbrg
+        return divisor * (n + 1) * PS_PER_SECOND // self.mcu.fosc
+
+    @property
+    def baud(self) -> float:
+        return PS_PER_SECOND / self.bit_ps()
+
+    def frame_ps(self) -> int:
+        """One transmitted frame: start, 8 (or 9) data bits, stop."""
+        return (11 if self._txsta & _TX9 else 10) * self.bit_ps()
+
+    # -------------------------------------------------------------- the SFR bus
+    def read(self, address: int) -> int:
+        if address == _TXSTA:
+            return self._txsta | (0 if self._sending else _TRMT)
+        if address == _RCSTA:
+            top = self._fifo[0] if self._fifo else None
+            return (self._rcsta | (_OERR if self._overrun else 0)
+                    | (_FERR if top and top.framing_error else 0) | (_RX9D if top and top.ninth else 0))
+        if address == _RCREG:
+            if self._fifo:
+                self._last_read = self._fifo.popleft().data
+                self.mcu.changed()
+            return self._last_read
+        if address == _TXREG:
+            return self._txreg or 0
+        if address == _BAUDCON:
+            return self._baudcon | _RCIDL
+        return self._spbrg if address == _SPBRG else self._spbrgh
+
+    def write(self, address: int, value: int) -> None:
+        if address == _TXSTA:
+            if value & _SYNC:
+                raise ValueError("TXSTA.SYNC = 1 selects synchronous mode, which the APP023's link does not use "
+                                 "and the simulator does not model: use USART_ASYNCH_MODE (19200 N 8 1)")
+            self._txsta = value & _TXSTA_WRITABLE
+            if not value & _TXEN:
+                self._abort_transmit()
+        elif address == _RCSTA:
+            self._rcsta = value & _RCSTA_WRITABLE
+            if not value & _CREN:
+                self._overrun = False
+            if not value & _SPEN:                   # the whole USART resets
+                self._abort_transmit()
+                self._fifo.clear()
+                self._overrun = False
+        elif address == _TXREG:
+            self._txreg = value
+        elif address == _BAUDCON:
+            self._baudcon = value & _BAUDCON_WRITABLE
+        elif address == _SPBRG:
+            self._spbrg = value
+        elif address == _SPBRGH:
+            self._spbrgh = value
+        self._load_shift_register()
+
+    # -------------------------------------------------------------- transmit
+    def _abort_transmit(self) -> None:
+        if self._sending is not None:
+            self._sending.cancel()
+            self._sending = None
+        self._txreg = None
+
+    def _load_shift_register(self) -> None:
+        """TXREG -> TSR when the TSR is empty and the transmitter enabled: the frame starts now."""
+        enabled = self._txsta & _TXEN and self._rcsta & _SPEN
+        if self._txreg is None or self._sending is not None or not enabled:
+            return
+        byte, self._txreg = self._txreg, None
+        self._sending = self.mcu.sim.call_after(self.frame_ps(), lambda: self._sent(byte))
+        self.mcu.changed()
+
+    def _sent(self, byte: int) -> None:
+        self._sending = None
+        route = self.dsw2.route
+        if route is not None:
+            end = self.usb if route == USB else self.con9
+            for listener in list(end.listeners):
+                listener(byte, self.mcu.sim.now)
+        self._load_shift_register()
+        self.mcu.changed()
+
+    # -------------------------------------------------------------- receive
+    def frame_starts(self, end: SerialEnd, byte: int) -> None:
+        """A frame's start bit from `end` reaches RX now: sample it at the USART's own baud rate."""
+        if not end.connected:
+            end.lost += 1
+            return
+        ninth = bool(self._rcsta & _RX9)
+        sampled = _sample(byte, end.bit_ps(), self.bit_ps(), 9 if ninth else 8)
+        if sampled is None:                       # no start bit where the receiver looks for it
+            end.lost += 1
+            return
+        data, last_data_bit, stop = sampled
+        done = self.bit_ps() * (3 + 2 * (9 if ninth else 8)) // 2       # the middle of the stop bit
+        received = Received(data & 0xFF, ninth and bool(last_data_bit), not stop)
+        self.mcu.sim.call_after(done, lambda: self._received(end, received))
+
+    def _received(self, end: SerialEnd, received: Received) -> None:
+        if not (self._rcsta & _SPEN and self._rcsta & _CREN) or self._overrun:
+            end.lost += 1
+            return
+        if len(self._fifo) == FIFO_DEPTH:
+            self._overrun = True
+            end.lost += 1
+        else:
+            self._fifo.append(received)
+        self.mcu.changed()
+
+
+def _sample(byte: int, sent_bit_ps: int, bit_ps: int, data_bits: int) -> tuple[int, int, int] | None:
+    """What a receiver at `bit_ps` reads from one 8N1 frame sent at `sent_bit_ps` (line idle after it).
+
+    Returns (data bits as a number, the last data bit, the stop bit), or None if the start bit is not
+    seen low at its middle. At matching rates this is (byte, bit 7, 1).
+    """
+    frame = [0] + [(byte >> i) & 1 for i in range(8)] + [1]
+
+    def level(t: int) -> int:
+        index = t // sent_bit_ps
+        return frame[index] if index < len(frame) else 1
+
+    if level(bit_ps // 2):
+        return None
+    bits = [level(bit_ps // 2 + (i + 1) * bit_ps) for i in range(data_bits)]
+    return sum(bit << i for i, bit in enumerate(bits)), bits[-1], level(bit_ps // 2 + (data_bits + 1) * bit_ps)
+
+
+def attach_usart(mcu: PIC18F8680, interrupts: PeripheralInterrupts, dsw2: DSW2) -> USART:
+    """Give `mcu` its USART, with TXIF/RCIF in `interrupts` (PIR1) and its pins routed by `dsw2`."""
+    if "TXSTA" in mcu.sfr_addresses:
+        raise ValueError(f"{mcu.name} already has its USART")
+    usart = USART(mcu, interrupts, dsw2)
+    mcu.map(usart, REGISTERS)
+    return usart
+
+
+# ------------------------------------------------------------------ MPLAB C18 usart.h
+# Masks combined with `&`; a field left out keeps its all-ones value (C18's values).
+USART_TX_INT_ON = 0b11111111
+USART_TX_INT_OFF = 0b01111111
+USART_RX_INT_ON = 0b11111111
+USART_RX_INT_OFF = 0b10111111
+USART_BRGH_HIGH = 0b11111111
+USART_BRGH_LOW = 0b11101111
+USART_CONT_RX = 0b11111111
+USART_SINGLE_RX = 0b11110111
+USART_SYNC_MASTER = 0b11111111
+USART_SYNC_SLAVE = 0b11111011
+USART_NINE_BIT = 0b11111111
+USART_EIGHT_BIT = 0b11111101
+USART_SYNCH_MODE = 0b11111111
+USART_ASYNCH_MODE = 0b11111110
+
+
+def _byte(function: str, value: int | str) -> int:
+    code = ord(value) if isinstance(value, str) and len(value) == 1 else value
+    if not isinstance(code, int) or isinstance(code, bool) or not 0 <= code <= 0xFF:
+        raise ValueError(f"{function} sends one byte: 0..255 or a 1-character string; got {value!r}")
+    return code
+
+
+def OpenUSART(config: int, spbrg: int) -> None:
+    """Reset and configure the USART, then enable it (TXEN, SPEN), as C18's OpenUSART does.
+
+    `config`: USART_TX_INT_* & USART_RX_INT_* & USART_ASYNCH_MODE & USART_EIGHT_BIT/NINE_BIT &
+    USART_CONT_RX/SINGLE_RX & USART_BRGH_*; `spbrg`: the baud rate value (129 with BRGH_HIGH: 19200
+    at 40 MHz). SPBRGH gets spbrg >> 8, used only if BAUDCON.BRG16 is set.
+    """
+    if not isinstance(config, int) or isinstance(config, bool) or not 0 <= config <= 0xFF:
+        raise ValueError(f"OpenUSART's config is one byte of USART_... masks combined with &; got {config!r}")
+    if not isinstance(spbrg, int) or isinstance(spbrg, bool) or not 0 <= spbrg <= 0xFFFF:
+        raise ValueError(f"OpenUSART's spbrg is the baud rate generator value, 0..65535; got {spbrg!r} "
+                         "(129 with USART_BRGH_HIGH gives 19200 baud at 40 MHz)")
+    mcu = library_call()
+    mcu.write_name("TXSTA", 0)
+    mcu.write_name("RCSTA", 0)
+    if config & 0x01:
+        mcu.set_bits("TXSTA", _SYNC, True)
+    if config & 0x02:
+        mcu.set_bits("TXSTA", _TX9, True)
+        mcu.set_bits("RCSTA", _RX9, True)
+    if config & 0x04:
+        mcu.set_bits("TXSTA", _CSRC, True)
+    mcu.set_bits("RCSTA", _CREN if config & 0x08 else _SREN, True)
+    mcu.set_bits("TXSTA", _BRGH, bool(config & 0x10))
+    mcu.set_bits("PIR1", 1 << TXIF, False)
+    mcu.set_bits("PIE1", 1 << RCIF, bool(config & 0x40))
+    mcu.set_bits("PIR1", 1 << RCIF, False)
+    mcu.set_bits("PIE1", 1 << TXIF, bool(config & 0x80))
+    mcu.write_name("SPBRG", spbrg & 0xFF)
+    mcu.write_name("SPBRGH", spbrg >> 8)
+    mcu.set_bits("TXSTA", _TXEN, True)
+    mcu.set_bits("RCSTA", _SPEN, True)
+
+
+def BusyUSART() -> bool:
+    """Whether the transmitter is still shifting a byte out (TXSTA.TRMT = 0), as C18 tests it."""
+    return not library_call().read_name("TXSTA") & _TRMT
+
+
+def WriteUSART(data: int | str) -> None:
+    """Put one byte in TXREG (without waiting: call BusyUSART first, as putsUSART does)."""
+    code = _byte("WriteUSART", data)
+    library_call().write_name("TXREG", code)
+
+
+putcUSART = WriteUSART
+
+
+def DataRdyUSART() -> bool:
+    """Whether a received byte is waiting (PIR1.RCIF)."""
+    return bool(library_call().read_name("PIR1") & (1 << RCIF))
+
+
+def ReadUSART() -> int:
+    """The next received byte from RCREG (C18 also notes FERR/OERR in USART_Status; read RCSTAbits for them)."""
+    mcu = library_call()
+    mcu.read_name("RCSTA")
+    return mcu.read_name("RCREG")
+
+
+getcUSART = ReadUSART
+
+
+def _put_string(function: str, text: str | bytes) -> None:
+    if isinstance(text, str):
+        try:
+            codes = text.encode("latin-1")
+        except UnicodeEncodeError:
+            raise ValueError(f"{function} sends one byte per character (0..255); {text!r} has others") from None
+    elif isinstance(text, (bytes, bytearray)):
+        codes = bytes(text)
+    else:
+        raise TypeError(f"{function} takes a string (str or bytes); got {text!r}")
+    codes = codes[:codes.index(0)] if 0 in codes else codes
+    for code in codes + b"\0":          # C18's loop sends the terminating NUL too
+        while BusyUSART():
+            pass
+        putcUSART(code)
+
+
+def putsUSART(text: str | bytes) -> None:
+    """Send a string from RAM, waiting for the transmitter before each byte; C18 sends its NUL as well."""
+    _put_string("putsUSART", text)
+
+
+def putrsUSART(text: str | bytes) -> None:
+    """Send a string from program memory (ROM): the same as putsUSART here, NUL included."""
+    _put_string("putrsUSART", text)
+
+
+def CloseUSART() -> None:
+    """Disable the receiver and the transmitter and their interrupt enables, as C18's CloseUSART does."""
+    mcu = library_call()
+    mcu.write_name("RCSTA", mcu.read_name("RCSTA") & 0b01001111)
+    mcu.set_bits("TXSTA", _TXEN, False)
+    mcu.write_name("PIE1", mcu.read_name("PIE1") & 0b11001111)
+
+
+__all__ = [
+    "USART_ASYNCH_MODE",
+    "USART_BRGH_HIGH",
+    "USART_BRGH_LOW",
+    "USART_CONT_RX",
+    "USART_EIGHT_BIT",
+    "USART_NINE_BIT",
+    "USART_RX_INT_OFF",
+    "USART_RX_INT_ON",
+    "USART_SINGLE_RX",
+    "USART_SYNCH_MODE",
+    "USART_SYNC_MASTER",
+    "USART_SYNC_SLAVE",
+    "USART_TX_INT_OFF",
+    "USART_TX_INT_ON",
+    "BusyUSART",
+    "CloseUSART",
+    "DataRdyUSART",
+    "OpenUSART",
+    "ReadUSART",
+    "WriteUSART",
+    "getcUSART",
+    "putcUSART",
+    "putrsUSART",
+    "putsUSART",
+]

@@ -1,0 +1,73 @@
+"""What a firmware file imports: `from appsim.firmware import *`, as EX1.C includes CAN18XX8.h and p18f8680.h.
+
+The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit structs (`RXB0CONbits.RXFUL`).
+"""
+from __future__ import annotations
+
+from appsim.chip import adc, interrupts, timer1, usart
+from appsim.firmware import an738
+from appsim.board import dsw2, glcd
+from appsim.chip.adc import *  # noqa: F403  (MPLAB C18 adc.h)
+from appsim.firmware.an738 import *  # noqa: F403  (the library's names, as the C header puts them in scope)
+from appsim.board.glcd import *  # noqa: F403  (APP023_GLCD.h)
+from appsim.chip.timer1 import *  # noqa: F403  (MPLAB C18 timers.h)
+from appsim.chip.usart import *  # noqa: F403  (MPLAB C18 usart.h)
+from appsim.chip.ecan.registers import BITFIELDS as _CAN_BITFIELDS
+from appsim.chip.mcu import CALL_CYCLES, current_mcu
+
+
+class _SFRs:
+    """Every special function register of the board by its datasheet name: `SFR.CANSTAT`, `SFR.CANCON = 0x80`."""
+
+    def __getattr__(self, name: str) -> int:
+        return current_mcu().read_name(name)
+
+    def __setattr__(self, name: str, value: int) -> None:
+        current_mcu().write_name(name, value)
+
+
+class _Bits:
+    """One register's bits and fields, read and written like C18's `RXB0CONbits.RXFUL = 0` (read-modify-write)."""
+
+    def __init__(self, register: str, fields: dict[str, tuple[int, int]]):
+        object.__setattr__(self, "_register", register)
+        object.__setattr__(self, "_fields", fields)
+
+    def _field(self, name: str) -> tuple[int, int]:
+        try:
+            return self._fields[name]
+        except KeyError:
+            raise AttributeError(f"{self._register} has no bit or field named {name!r}; "
+                                 f"it has {', '.join(self._fields)}") from None
+
+    def __getattr__(self, name: str) -> int:
+        shift, width = self._field(name)
+        return (current_mcu().read_name(self._register) >> shift) & ((1 << width) - 1)
+
+    def __setattr__(self, name: str, value: int) -> None:
+        shift, width = self._field(name)
+        mask = ((1 << width) - 1) << shift
+        mcu = current_mcu()
+        mcu.write_name(self._register, (mcu.read_name(self._register) & ~mask) | ((value << shift) & mask))
+
+
+def Nop() -> None:
+    """One instruction cycle doing nothing (C18's Nop())."""
+    current_mcu().spend_cycles(1)
+
+
+def Delay1KTCYx(unit: int) -> None:
+    """Wait 1,000 x `unit` instruction cycles (C18 delays.h; 0.1 ms per unit at 40 MHz)."""
+    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * unit)
+
+
+def Delay10KTCYx(unit: int) -> None:
+    """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz)."""
+    current_mcu().spend_cycles(CALL_CYCLES + 10_000 * unit)
+
+
+BITFIELDS = _CAN_BITFIELDS | adc.BITFIELDS | interrupts.BITFIELDS | timer1.BITFIELDS | usart.BITFIELDS | dsw2.BITFIELDS
+SFR = _SFRs()
+globals().update({f"{register}bits": _Bits(register, fields) for register, fields in BITFIELDS.items()})
+
+__all__ = list(an738.__all__) + list(adc.__all__) + list(timer1.__all__) + list(glcd.__all__) + list(usart.__all__) + ["SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx"] + [f"{r}bits" for r in BITFIELDS]

@@ -1,0 +1,215 @@
+"""Pictures for the notebooks: a frame's bits on the wire, arbitration, one bit's time segments, the bus over time.
+
+Each function draws on `ax` (a new figure when None) and returns the Figure, as `GLCD.picture` does.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from itertools import groupby
+from typing import TYPE_CHECKING, Any, cast
+
+from appsim.bus import monitor
+from appsim.can.bits import WireBit, encode_annotated
+from appsim.can.bittiming import SYNC_SEG_TQ, BitTiming
+from appsim.bus.wire import BusEvent
+from appsim.can.frame import CanFrame
+from appsim.sim import PS_PER_SECOND
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+FIELD_COLOURS = {
+    "SOF": "#f4cccc", "ID": "#fce5cd", "SRR": "#fff2cc", "IDE": "#fff2cc", "RTR": "#fff2cc", "r0": "#d9ead3",
+    "r1": "#d9ead3", "DLC": "#d9ead3", "DATA": "#cfe2f3", "CRC": "#d9d2e9", "CRC delimiter": "#eeeeee",
+    "ACK slot": "#b6d7a8", "ACK delimiter": "#eeeeee", "EOF": "#eeeeee",
+}
+ARBITRATION_FIELDS = frozenset({"SOF", "ID", "SRR", "IDE", "RTR"})
+SEGMENT_COLOURS = {"Sync": "#999999", "Prop": "#f6b26b", "Phase1": "#93c47d", "Phase2": "#6fa8dc"}
+ERROR_THRESHOLDS = ((96, "warning (96)"), (128, "error-passive (128)"), (256, "bus-off (TEC 256)"))
+MS = PS_PER_SECOND / 1000
+
+
+def _axes(ax: Axes | None, size: tuple[float, float]) -> Axes:
+    if ax is not None:
+        return ax
+    import matplotlib.pyplot as plt
+
+    return plt.figure(figsize=size).add_subplot()
+
+
+def _figure(ax: Axes) -> Figure:
+    """The figure `ax` draws in (a subfigure when the caller's axes sit in one)."""
+    return cast("Figure", ax.figure)
+
+
+def _levels(ax: Axes, levels: Sequence[int], y: float = 0.0, x0: int = 0, **style: Any) -> None:
+    """A wire's levels as a step line from bit `x0`, recessive (1) high and dominant (0) low."""
+    xs = range(x0, x0 + len(levels) + 1)
+    ax.step(xs, [y + level for level in levels] + [y + levels[-1]], where="post", **style)
+
+
+def wire_bits(frame: CanFrame, ax: Axes | None = None, *, acked: bool = True) -> Figure:
+    """The frame on the wire, SOF..EOF: fields as coloured bands, stuff bits outlined in red.
+
+    `acked`: the ACK slot is dominant, as the receivers drive it; False draws it recessive, as a sender
+    alone on the bus sees it (an ACK error).
+    """
+    ax = _axes(ax, (14, 2.6))
+    from matplotlib.patches import Rectangle
+
+    bits: list[WireBit] = encode_annotated(frame)
+    levels = [0 if acked and bit.field == "ACK slot" else bit.level for bit in bits]
+    position, narrow = 0, 0
+    for field, run in groupby(bits, key=lambda bit: bit.field):
+        width = len(list(run))
+        ax.axvspan(position, position + width, color=FIELD_COLOURS[field], zorder=0)
+        label = {"CRC delimiter": "DEL", "ACK delimiter": "DEL", "ACK slot": "ACK"}.get(field, field)
+        narrow = narrow + 1 if width < 3 else 0          # stagger the labels of one- and two-bit fields
+        ax.text(position + width / 2, 1.2 + 0.25 * (narrow % 2), label, ha="center", va="bottom", fontsize=8)
+        position += width
+    for index, bit in enumerate(bits):
+        if bit.stuff:
+            ax.add_patch(Rectangle((index, -0.1), 1, 1.2, fill=False, edgecolor="red", linewidth=1.5, gid="stuff"))
+    _levels(ax, levels, color="black", linewidth=1.5)
+    stuffed = sum(bit.stuff for bit in bits)
+    kind = "remote" if frame.remote else "data"
+    ax.set_title(f"{kind} frame {frame}: {len(bits)} bits on the wire, {stuffed} of them stuff bits (red)")
+    ax.set_xlim(0, len(bits))
+    ax.set_ylim(-0.3, 1.8)
+    ax.set_yticks([0, 1], ["dominant 0", "recessive 1"])
+    ax.set_xlabel("bit")
+    return _figure(ax)
+
+
+def arbitration(frames: Mapping[str, CanFrame], ax: Axes | None = None) -> Figure:
+    """Nodes starting frames at the same SOF: each one's bits through the arbitration field, and the bus.
+
+    The bus is the wired-AND of what is driven (dominant 0 wins). A node that sends recessive and reads
+    dominant has lost: it stops sending (grey from there) and becomes a receiver. The lowest ID wins.
+    """
+    if len(frames) < 2:
+        raise ValueError("arbitration needs at least two nodes starting a frame at the same time")
+    sent = {name: [bit.level for bit in encode_annotated(frame) if bit.field in ARBITRATION_FIELDS]
+            for name, frame in frames.items()}
+    ax = _axes(ax, (12, 1.2 + 0.9 * (len(frames) + 1)))
+    sending = set(frames)
+    lost_at: dict[str, int] = {}
+    bus: list[int] = []
+    while driven := [sent[name][len(bus)] for name in sending if len(bus) < len(sent[name])]:
+        level = min(driven)
+        for name in sorted(sending):
+            if len(bus) < len(sent[name]) and sent[name][len(bus)] > level:
+                lost_at[name] = len(bus)
+                sending.discard(name)
+        bus.append(level)
+    length = len(bus)
+    rows = list(frames)
+    for row, name in enumerate(rows):
+        y = 2 * (len(rows) - row)
+        stop = lost_at.get(name, len(sent[name]) - 1) + 1
+        _levels(ax, sent[name][:stop], y, color="black", linewidth=1.5)
+        if name in lost_at:
+            if stop < length:
+                _levels(ax, bus[stop:], y, stop, color="#bbbbbb", linewidth=1)    # it only listens now
+            ax.plot(lost_at[name] + 0.5, y + 1.2, "rx", markersize=10)
+            ax.text(stop + 0.2, y + 1.25, f"lost at bit {lost_at[name]}", color="red", fontsize=9)
+    _levels(ax, bus, 0, color="tab:blue", linewidth=2)
+    winner = next(name for name in rows if name not in lost_at)
+    labels = [f"{name}  0x{frames[name].can_id:03X}" for name in rows] + ["bus (wired-AND)"]
+    ax.set_yticks([2 * (len(rows) - row) + 0.5 for row in range(len(rows))] + [0.5], labels)
+    ax.set_xticks(range(length + 1))
+    ax.set_xlim(0, length)
+    ax.set_xlabel("bit from SOF (SOF, identifier MSB first, RTR)")
+    ax.set_title(f"{winner} wins arbitration: at the first bit that differs it sends dominant 0; lowest ID wins")
+    return _figure(ax)
+
+
+def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure:
+    """One bit time in TQ: Sync, Prop, Phase1 and Phase2 segments, the sample point and the SJW window."""
+    from matplotlib.patches import Rectangle
+
+    ax = _axes(ax, (10, 2.4))
+    segments = (("Sync", SYNC_SEG_TQ), ("Prop", timing.prseg), ("Phase1", timing.seg1ph),
+                ("Phase2", timing.effective_seg2ph))
+    start = 0
+    for name, width in segments:
+        ax.add_patch(Rectangle((start, 0), width, 1, facecolor=SEGMENT_COLOURS[name], edgecolor="black", gid="segment"))
+        ax.text(start + width / 2, 0.5, f"{name}\n{width} TQ", ha="center", va="center", fontsize=9)
+        start += width
+    sample = SYNC_SEG_TQ + timing.prseg + timing.seg1ph
+    ax.add_patch(Rectangle((sample - timing.sjw, 1.05), 2 * timing.sjw, 0.15, facecolor="#cccccc", gid="sjw"))
+    ax.text(sample, 1.25, f"SJW {timing.sjw} TQ: resynchronisation may lengthen Phase1 or shorten Phase2 by this much", ha="center", fontsize=8)
+    ax.axvline(sample, color="red", linewidth=2)
+    ax.text(sample, -0.25, f"sample point {float(timing.sample_point):.1%}", color="red", ha="center", fontsize=9)
+    tq_us = float(timing.tq_seconds(fosc)) * 1e6
+    ax.set_xlim(0, timing.tq_per_bit)
+    ax.set_ylim(-0.4, 1.5)
+    ax.set_xticks(range(timing.tq_per_bit + 1))
+    ax.set_yticks([])
+    ax.set_xlabel(f"time quanta (1 TQ = 2 x BRP {timing.brp} / Fosc = {tq_us:g} µs)")
+    ax.set_title(f"one bit = {timing.tq_per_bit} TQ = {timing.tq_per_bit * tq_us:g} µs: "
+                 f"{float(timing.bit_rate(fosc)) / 1000:g} kbit/s")
+    return _figure(ax)
+
+
+def bus_timeline(trace: Sequence[BusEvent], ax: Axes | None = None, *,
+                 start_ps: int | None = None, end_ps: int | None = None) -> Figure:
+    """Frames on the bus over time, one row per sender: data frames blue, RTR frames hatched, error frames red."""
+    from matplotlib.patches import Rectangle
+
+    start_ps = min((e.start_ps for e in trace), default=0) if start_ps is None else start_ps
+    end_ps = max((e.end_ps for e in trace), default=start_ps + 1) if end_ps is None else end_ps
+    shown = [e for e in trace if e.end_ps > start_ps and e.start_ps < end_ps]
+    senders = list(dict.fromkeys(e.sender for e in shown))
+    ax = _axes(ax, (12, 1 + 0.45 * max(1, len(senders))))
+    for event in shown:
+        row = len(senders) - 1 - senders.index(event.sender)
+        colour = "tab:red" if event.error else "tab:blue"
+        ax.add_patch(Rectangle((event.start_ps / MS, row + 0.1), (event.end_ps - event.start_ps) / MS, 0.8,
+                               facecolor=colour, edgecolor=colour, hatch="///" if event.frame.remote else None,
+                               alpha=0.5 if event.frame.remote else 0.9, gid="error" if event.error else "frame"))
+        if len(shown) <= 40:
+            ax.text(event.end_ps / MS, row + 0.5, f" {event.frame.can_id:03X}", va="center", fontsize=7)
+    ax.set_yticks([len(senders) - 0.5 - row for row in range(len(senders))], senders)
+    ax.set_xlim(start_ps / MS, end_ps / MS)
+    ax.set_ylim(0, max(1, len(senders)))
+    ax.set_xlabel("time (ms)")
+    errors = sum(1 for e in shown if e.error)
+    ax.set_title(f"{len(shown) - errors} frames, {errors} error frames (red); RTR frames hatched")
+    return _figure(ax)
+
+
+def bus_load_over_time(trace: Sequence[BusEvent], start_ps: int, end_ps: int, window_ps: int,
+                       ax: Axes | None = None) -> Figure:
+    """Bus load (`monitor.bus_load`) in consecutive windows of `window_ps`, as bars in percent."""
+    if window_ps <= 0 or end_ps <= start_ps:
+        raise ValueError("give a positive window and a time span with end after start")
+    ax = _axes(ax, (10, 2.5))
+    starts = range(start_ps, end_ps, window_ps)
+    loads = [100 * monitor.bus_load(trace, s, min(s + window_ps, end_ps)) for s in starts]
+    ax.bar([s / MS for s in starts], loads, width=window_ps / MS, align="edge", color="tab:blue", edgecolor="white")
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel("bus load (%)")
+    ax.set_ylim(0, 100)
+    ax.set_title(f"bus load per {window_ps / MS:g} ms")
+    return _figure(ax)
+
+
+def error_counter_history(samples: Sequence[tuple[float, int, int]], ax: Axes | None = None, *,
+                          node: str = "") -> Figure:
+    """TEC and REC against time from (seconds, TEC, REC) samples, with the error-state thresholds."""
+    ax = _axes(ax, (10, 3))
+    times = [s[0] * 1000 for s in samples]
+    ax.step(times, [s[1] for s in samples], where="post", label="TEC", color="tab:red", linewidth=2)
+    ax.step(times, [s[2] for s in samples], where="post", label="REC", color="tab:blue", linewidth=2)
+    top = max([s[1] for s in samples] + [s[2] for s in samples] + [140])
+    for level, name in ERROR_THRESHOLDS:
+        if level <= top + 20:
+            ax.axhline(level, color="grey", linestyle="--", linewidth=1)
+            ax.text(times[0] if times else 0, level + 3, name, color="grey", fontsize=8)
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel("error counter")
+    ax.set_title(f"error counters{' of ' + node if node else ''}")
+    ax.legend(loc="lower right")
+    return _figure(ax)
