@@ -6,6 +6,7 @@ cycles; a loop that polls a world that cannot change until the next event parks 
 """
 from __future__ import annotations
 
+import contextvars
 import heapq
 import itertools
 import traceback
@@ -86,8 +87,8 @@ class Simulator:
         return self.call_at(self.time() + delay, callback)
 
     # -------------------------------------------------------------- processes
-    def start(self, name: str, main: Callable[[], Any], *, context: Any = None) -> "Process":
-        """Start firmware `main` as a process at the current time; `context` is what it runs on."""
+    def start(self, name: str, main: Callable[[], Any], *, context: contextvars.Context | None = None) -> "Process":
+        """Start firmware `main` as a process at the current time, in `context` (its context variables)."""
         process = Process(self, name, main, context)
         self.processes.append(process)
         self._make_ready(process)
@@ -152,15 +153,16 @@ class Process(greenlet.greenlet):
     """
 
     # Slots: attributes of a greenlet subclass are otherwise looked up the slow way, on every register access.
-    __slots__ = ("context", "failure", "failure_text", "finished", "horizon", "local_time", "main", "name", "parked",
+    __slots__ = ("failure", "failure_text", "finished", "horizon", "local_time", "main", "name", "parked",
                  "sim", "watched")
 
-    def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: Any):
+    def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: contextvars.Context | None):
         super().__init__(self._body)
+        if context is not None:
+            self.gr_context = context
         self.sim = sim
         self.name = name
         self.main = main
-        self.context = context
         self.local_time = sim.now
         self.horizon: float = 0
         self.parked = False

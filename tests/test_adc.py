@@ -5,8 +5,8 @@ from collections.abc import Callable
 
 import pytest
 
-from appsim.chip.adc import (
-    ADC,
+from appsim.chip.adc import ADC, attach_adc
+from appsim.firmware.adc import (
     ADC_1ANA,
     ADC_16ANA,
     ADC_CH0,
@@ -33,7 +33,6 @@ from appsim.chip.adc import (
     OpenADC,
     ReadADC,
     SetChanADC,
-    attach_adc,
 )
 from appsim.firmware import Delay10KTCYx
 from appsim.chip.mcu import PIC18F8680

@@ -6,7 +6,7 @@ import pytest
 from appsim.firmware.an738 import AN738Error
 from appsim.chip.ecan import registers as R
 from appsim.firmware import *  # noqa: F403
-from appsim.chip.mcu import NotOnABoard
+from appsim.chip.sfr import NotOnABoard
 
 CLASSROOM = (4, 10, 8, 4, 3)      # SJW, BRP, PHSEG1, PHSEG2, PROPSEG: 125 kbit/s at 40 MHz
 

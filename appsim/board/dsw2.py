@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from appsim.chip.mcu import PIC18F8680
+from appsim.chip.sfr import PORTJ_REGISTERS
 
 POSITIONS = range(1, 9)
 USB, CON9 = "usb", "con9"
@@ -85,13 +86,7 @@ def _checked(positions: tuple[int, ...]) -> tuple[int, ...]:
 
 
 # ------------------------------------------------------------------ PORTJ: DSW2 1 and 2 on RJ0 and RJ1
-_PORTJ, _LATJ, _TRISJ = 0xF88, 0xF91, 0xF9A
-REGISTERS: tuple[tuple[str, int], ...] = (("PORTJ", _PORTJ), ("LATJ", _LATJ), ("TRISJ", _TRISJ))
-BITFIELDS: dict[str, dict[str, tuple[int, int]]] = {
-    "PORTJ": {f"RJ{n}": (n, 1) for n in range(8)},
-    "LATJ": {f"LATJ{n}": (n, 1) for n in range(8)},
-    "TRISJ": {f"TRISJ{n}": (n, 1) for n in range(8)},
-}
+_PORTJ, _LATJ, _TRISJ = (PORTJ_REGISTERS[name] for name in ("PORTJ", "LATJ", "TRISJ"))
 
 
 class PortJ:
@@ -129,5 +124,5 @@ def attach_dsw2(mcu: PIC18F8680) -> tuple[DSW2, PortJ]:
         raise ValueError(f"{mcu.name} already has its PORTJ")
     dsw2 = DSW2(mcu)
     port = PortJ(dsw2)
-    mcu.map(port, REGISTERS)
+    mcu.map(port, PORTJ_REGISTERS.items())
     return dsw2, port

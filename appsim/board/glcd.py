@@ -1,20 +1,18 @@
 """The APP023's 128x64 graphic LCD as the workshop uses it: 8 lines of 21 characters, driven by APP023_GLCD.C's API.
 
-Not register level: the C driver bit-bangs ports; here each call costs the instruction cycles that driver would take.
+Not register level: the C driver bit-bangs ports; here each driver operation costs the instruction cycles it would take.
 """
 from __future__ import annotations
 
-import weakref
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-import numpy as np
-
 from appsim.board import font5x7
-from appsim.chip.mcu import CALL_CYCLES, PIC18F8680, current_mcu
+from appsim.chip.mcu import PIC18F8680
 
 if TYPE_CHECKING:
+    import numpy as np
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
@@ -61,18 +59,27 @@ class GLCD:
         self._column = 0
         self.history: list[Write] = []
 
-    # -------------------------------------------------------------- what the firmware does
+    # -------------------------------------------------------------- what the firmware's GLCD library does
     def initial(self) -> None:
+        """GLCD_Initial: set-up commands, then clear the screen; cursor to line 1 column 1, backlight on."""
+        self.mcu.spend_cycles(INITIAL_CYCLES)
         self._codes = [[0x20] * COLUMNS for _ in range(LINES)]
         self._line = self._column = 0
         self.initialised = True
         self.backlight = True
 
     def set_cursor(self, line: int, column: int) -> None:
+        """setcurGLCD: the page (line 1..8) and column (1..21) address."""
+        if not (1 <= line <= LINES and 1 <= column <= COLUMNS):
+            raise ValueError(f"setcurGLCD({line!r}, {column!r}): lines are numbered 1..{LINES} and columns "
+                             f"1..{COLUMNS} on the APP023's {LINES}x{COLUMNS} screen")
+        self._initialised()
+        self.mcu.spend_cycles(CURSOR_CYCLES)
         self._line, self._column = line - 1, column - 1
 
     def write(self, codes: Sequence[int]) -> None:
         """Draw character `codes` at the cursor and advance, taking the driver's time; past column 21 is cut off."""
+        self._initialised()
         line, column = self._line, self._column
         drawn = list(codes[:max(0, COLUMNS - column)])
         self._codes[line][column:column + len(drawn)] = drawn
@@ -80,6 +87,10 @@ class GLCD:
         self.mcu.spend_cycles(len(drawn) * CHARACTER_CYCLES)
         text = "".join(font5x7.shows_as(code) for code in drawn)
         self.history.append(Write(self.mcu.sim.time(), line + 1, column + 1, text))
+
+    def _initialised(self) -> None:
+        if not self.initialised:
+            raise NotInitialised("the GLCD is not set up yet: call GLCD_Initial() first, as EX1.C does")
 
     # -------------------------------------------------------------- what a person sees
     @property
@@ -103,6 +114,8 @@ class GLCD:
 
     def pixels(self) -> np.ndarray:
         """The 64 x 128 pixels (True = dark), drawn with the 5x7 font in 6x8 cells."""
+        import numpy as np
+
         screen = np.zeros((HEIGHT_PX, WIDTH_PX), dtype=bool)
         rows = np.arange(font5x7.HEIGHT)
         for line, codes in enumerate(self._codes):
@@ -115,6 +128,7 @@ class GLCD:
     def picture(self, ax: Axes | None = None, *, scale: float = 4.0) -> Figure:
         """Draw the module as it looks: dark pixels on the yellow-green backlight (grey-green when off)."""
         import matplotlib.pyplot as plt
+        import numpy as np
         from matplotlib.patches import FancyBboxPatch
 
         if ax is None:
@@ -150,80 +164,9 @@ def _rgb(colour: str) -> tuple[float, float, float]:
     return tuple(int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5))    # type: ignore[return-value]
 
 
-_SCREENS: weakref.WeakKeyDictionary[PIC18F8680, GLCD] = weakref.WeakKeyDictionary()
-
-
 def attach_glcd(mcu: PIC18F8680) -> GLCD:
     """Wire a GLCD to `mcu` (on the APP023 its ports drive the module)."""
-    if mcu in _SCREENS:
+    if mcu.glcd is not None:
         raise ValueError(f"{mcu.name} already has its GLCD")
-    screen = _SCREENS[mcu] = GLCD(mcu)
+    screen = mcu.glcd = GLCD(mcu)
     return screen
-
-
-# ------------------------------------------------------------------ APP023_GLCD.h
-def _screen(cycles: int, *, before_initial: bool = False) -> GLCD:
-    mcu = current_mcu()
-    screen = _SCREENS.get(mcu)
-    if screen is None:
-        raise RuntimeError(f"{mcu.name} has no GLCD: the GLCD functions need firmware running on an APP023 board")
-    if not screen.initialised and not before_initial:
-        raise NotInitialised("the GLCD is not set up yet: call GLCD_Initial() first, as EX1.C does")
-    mcu.spend_cycles(CALL_CYCLES + cycles)
-    return screen
-
-
-def _codes(text: Any, function: str) -> list[int]:
-    """A C string as character codes, up to its NUL: from a str, bytes or a list of ints (0..255)."""
-    if isinstance(text, str):
-        try:
-            codes = list(text.encode("latin-1"))
-        except UnicodeEncodeError:
-            raise ValueError(f"{function}: the GLCD shows one byte per character (0..255); "
-                             f"{text!r} has characters outside that") from None
-    elif isinstance(text, (bytes, bytearray)):
-        codes = list(text)
-    elif isinstance(text, (list, tuple)) and all(isinstance(c, int) and not isinstance(c, bool) for c in text):
-        codes = list(text)
-        if any(not 0 <= c <= 0xFF for c in codes):
-            raise ValueError(f"{function}: a C string holds bytes 0..255; got {text!r}")
-    else:
-        raise TypeError(f"{function} takes a string (str, bytes, or a list of character codes); got {text!r}")
-    return codes[:codes.index(0)] if 0 in codes else codes
-
-
-def GLCD_Initial() -> None:
-    """Set the GLCD up: clear the screen, cursor to line 1 column 1, backlight on."""
-    _screen(INITIAL_CYCLES, before_initial=True).initial()
-
-
-def setcurGLCD(line: int, column: int) -> None:
-    """Put the cursor on `line` (1..8) at `column` (1..21)."""
-    valid = all(isinstance(v, int) and not isinstance(v, bool) for v in (line, column))
-    if not valid or not (1 <= line <= LINES and 1 <= column <= COLUMNS):
-        raise ValueError(f"setcurGLCD({line!r}, {column!r}): lines are numbered 1..{LINES} and columns "
-                         f"1..{COLUMNS} on the APP023's {LINES}x{COLUMNS} screen")
-    _screen(CURSOR_CYCLES).set_cursor(line, column)
-
-
-def putsGLCD(text: str | bytes | Sequence[int]) -> None:
-    """Write a string (from RAM) at the cursor; it stops at a NUL, and what passes column 21 is cut off."""
-    codes = _codes(text, "putsGLCD")
-    _screen(0).write(codes)
-
-
-def putrsGLCD(text: str | bytes | Sequence[int]) -> None:
-    """Write a string from program memory (ROM): the same as putsGLCD here."""
-    codes = _codes(text, "putrsGLCD")
-    _screen(0).write(codes)
-
-
-def putcGLCD(character: int | str) -> None:
-    """Write one character (a code 0..255 or a 1-character str) at the cursor."""
-    code = ord(character) if isinstance(character, str) and len(character) == 1 else character
-    if not isinstance(code, int) or isinstance(code, bool) or not 0 <= code <= 0xFF:
-        raise ValueError(f"putcGLCD takes one character: a code 0..255 or a 1-character string; got {character!r}")
-    _screen(0).write([code])
-
-
-__all__ = ["GLCD_Initial", "putcGLCD", "putrsGLCD", "putsGLCD", "setcurGLCD"]

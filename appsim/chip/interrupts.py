@@ -7,22 +7,10 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from appsim.chip.mcu import PIC18F8680
+from appsim.chip.sfr import INTERRUPT_REGISTERS, INTERRUPT_SOURCES
 
-_PIE1, _PIR1, _IPR1 = 0xF9D, 0xF9E, 0xF9F
-REGISTERS: tuple[tuple[str, int], ...] = (("PIE1", _PIE1), ("PIR1", _PIR1), ("IPR1", _IPR1))
-
-# PIR1 bit numbers (PIC18F8680 data sheet); PIE1 and IPR1 have the matching ...IE and ...IP bits.
-PSPIF, ADIF, RCIF, TXIF, SSPIF, CCP1IF, TMR2IF, TMR1IF = 7, 6, 5, 4, 3, 2, 1, 0
-_SOURCES = ("TMR1", "TMR2", "CCP1", "SSP", "TX", "RC", "AD", "PSP")       # bit 0..7
-FLAG_NAMES: dict[int, str] = {bit: f"{source}IF" for bit, source in enumerate(_SOURCES)}
-
-
-def _bits(suffix: str) -> dict[str, tuple[int, int]]:
-    return {f"{source}{suffix}": (bit, 1) for bit, source in enumerate(_SOURCES)}
-
-
-BITFIELDS: dict[str, dict[str, tuple[int, int]]] = {
-    "PIR1": _bits("IF"), "PIE1": _bits("IE"), "IPR1": _bits("IP")}
+_PIE1, _PIR1, _IPR1 = (INTERRUPT_REGISTERS[name] for name in ("PIE1", "PIR1", "IPR1"))
+FLAG_NAMES: dict[int, str] = {bit: f"{source}IF" for bit, source in enumerate(INTERRUPT_SOURCES)}
 
 
 class PeripheralInterrupts:
@@ -89,5 +77,5 @@ def attach_interrupts(mcu: PIC18F8680) -> PeripheralInterrupts:
     if "PIR1" in mcu.sfr_addresses:
         raise ValueError(f"{mcu.name} already has PIR1/PIE1/IPR1")
     interrupts = PeripheralInterrupts(mcu)
-    mcu.map(interrupts, REGISTERS)
+    mcu.map(interrupts, INTERRUPT_REGISTERS.items())
     return interrupts

@@ -6,6 +6,7 @@ peripheral event changes something it reads: a busy-wait costs one loop turn per
 """
 from __future__ import annotations
 
+import contextvars
 import sys
 from collections.abc import Callable, Iterable
 from types import CodeType
@@ -15,11 +16,11 @@ import greenlet
 
 from appsim.chip.ecan import registers as ecan_registers
 from appsim.chip.ecan.controller import ECAN
+from appsim.chip.sfr import RUNNING_MCU, GLCDPort, SFRNames
 from appsim.sim import PS_PER_SECOND, Process, Simulator
 
 FOSC_HZ = 40_000_000            # APP023: 10 MHz crystal with the 4x PLL
 SFR_ACCESS_CYCLES = 2           # a C statement touching an SFR: MOVFF / MOVF + MOVWF, with banking
-CALL_CYCLES = 10                # CALL/RETURN and argument passing of a C18 library function
 
 _getcurrent = greenlet.getcurrent
 
@@ -29,36 +30,6 @@ class Peripheral(Protocol):
 
     def read(self, address: int) -> int: ...
     def write(self, address: int, value: int) -> None: ...
-
-
-class NotOnABoard(RuntimeError):
-    """A firmware function was called outside firmware running on a simulated board."""
-
-
-class SFRNames:
-    """Registers by their datasheet names, on top of `read` and `write` by address."""
-
-    sfr_addresses: dict[str, int]
-
-    def read(self, address: int, site: object = None) -> int: ...
-    def write(self, address: int, value: int) -> None: ...
-
-    def address_of(self, name: str) -> int:
-        try:
-            return self.sfr_addresses[name]
-        except KeyError:
-            raise KeyError(f"the PIC18F8680 has no special function register named {name!r}") from None
-
-    def read_name(self, name: str) -> int:
-        return self.read(self.address_of(name))
-
-    def write_name(self, name: str, value: int) -> None:
-        self.write(self.address_of(name), value)
-
-    def set_bits(self, name: str, mask: int, on: bool) -> None:
-        """Set (or clear) the `mask` bits of a register, read-modify-write, as `BSF`/`BCF` on it would."""
-        value = self.read_name(name)
-        self.write_name(name, value | mask if on else value & ~mask)
 
 
 class PIC18F8680(SFRNames):
@@ -87,6 +58,7 @@ class PIC18F8680(SFRNames):
         self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
         self.process: Process | None = None
         self.on_changed: list[Callable[[], None]] = []
+        self.glcd: GLCDPort | None = None                   # the board's display, if it has one
 
     def map(self, device: Peripheral, registers: Iterable[tuple[str, int]]) -> None:
         """Put a peripheral's registers (name, address) on the SFR bus."""
@@ -173,7 +145,9 @@ class PIC18F8680(SFRNames):
         if self.process is not None and not self.process.dead:
             self.process.stop()
         _IS_KIT.clear()          # a cache: new firmware brings new code objects (a grader loads thousands)
-        self.process = self.sim.start(self.name, main, context=self)
+        context = contextvars.Context()
+        context.run(RUNNING_MCU.set, self)                  # what `current_mcu()` gives its firmware
+        self.process = self.sim.start(self.name, main, context=context)
         return self.process
 
 
@@ -197,20 +171,3 @@ def _firmware_location() -> tuple[tuple[int, int], ...]:
             location.append((id(code), frame.f_lasti))
         frame = frame.f_back
     return tuple(location)
-
-
-def current_mcu() -> PIC18F8680:
-    """The MCU whose firmware is running now (what `CANSendMessage` and friends act on)."""
-    context = getattr(greenlet.getcurrent(), "context", None)
-    if isinstance(context, PIC18F8680):
-        return context
-    raise NotOnABoard(
-        "this is firmware: it runs on a simulated board, from main(). "
-        "Start it with a board's run(main) (or `appsim board FILE`), not by calling it directly.")
-
-
-def library_call() -> PIC18F8680:
-    """The MCU a C18 or AN738 library function acts on, after the CALL/RETURN and argument passing it costs."""
-    mcu = current_mcu()
-    mcu.spend_cycles(CALL_CYCLES)
-    return mcu

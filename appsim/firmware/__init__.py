@@ -4,16 +4,14 @@ The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit str
 """
 from __future__ import annotations
 
-from appsim.chip import adc, interrupts, timer1, usart
-from appsim.firmware import an738
-from appsim.board import dsw2, glcd
-from appsim.chip.adc import *  # noqa: F403  (MPLAB C18 adc.h)
+from appsim.chip.sfr import BITFIELDS, current_mcu
+from appsim.firmware import adc, an738, glcd, timers, usart
+from appsim.firmware.adc import *  # noqa: F403  (MPLAB C18 adc.h)
 from appsim.firmware.an738 import *  # noqa: F403  (the library's names, as the C header puts them in scope)
-from appsim.board.glcd import *  # noqa: F403  (APP023_GLCD.h)
-from appsim.chip.timer1 import *  # noqa: F403  (MPLAB C18 timers.h)
-from appsim.chip.usart import *  # noqa: F403  (MPLAB C18 usart.h)
-from appsim.chip.ecan.registers import BITFIELDS as _CAN_BITFIELDS
-from appsim.chip.mcu import CALL_CYCLES, current_mcu
+from appsim.firmware.glcd import *  # noqa: F403  (APP023_GLCD.h)
+from appsim.firmware.runtime import CALL_CYCLES
+from appsim.firmware.timers import *  # noqa: F403  (MPLAB C18 timers.h)
+from appsim.firmware.usart import *  # noqa: F403  (MPLAB C18 usart.h)
 
 
 class _SFRs:
@@ -66,8 +64,8 @@ def Delay10KTCYx(unit: int) -> None:
     current_mcu().spend_cycles(CALL_CYCLES + 10_000 * unit)
 
 
-BITFIELDS = _CAN_BITFIELDS | adc.BITFIELDS | interrupts.BITFIELDS | timer1.BITFIELDS | usart.BITFIELDS | dsw2.BITFIELDS
 SFR = _SFRs()
 globals().update({f"{register}bits": _Bits(register, fields) for register, fields in BITFIELDS.items()})
 
-__all__ = list(an738.__all__) + list(adc.__all__) + list(timer1.__all__) + list(glcd.__all__) + list(usart.__all__) + ["SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx"] + [f"{r}bits" for r in BITFIELDS]
+__all__ = [*an738.__all__, *adc.__all__, *timers.__all__, *glcd.__all__, *usart.__all__,
+           "SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx", *(f"{r}bits" for r in BITFIELDS)]

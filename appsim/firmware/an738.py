@@ -11,7 +11,8 @@ from typing import NamedTuple
 
 from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import pack_id, unpack_id
-from appsim.chip.mcu import PIC18F8680, library_call
+from appsim.chip.sfr import FirmwareMCU
+from appsim.firmware.runtime import library_call
 
 TRUE, FALSE = True, False
 
@@ -139,7 +140,7 @@ class CANMessage(NamedTuple):
 NO_MESSAGE = CANMessage(0, b"", 0, -1)
 
 
-def _window(mcu: PIC18F8680, win: int) -> None:
+def _window(mcu: FirmwareMCU, win: int) -> None:
     """CANCON.WIN = win, by read-modify-write as the library does (`CANCON &= 0b11110001; |= ...`)."""
     mcu.write(_CANCON, (mcu.read(_CANCON) & 0b11110001) | (win << 1))
 
@@ -216,7 +217,7 @@ def CANSetBaudRate(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
     mcu.write(_BRGCON3, brgcon3)
 
 
-def _write_id(mcu: PIC18F8680, base: int, value: int, extended: bool) -> None:
+def _write_id(mcu: FirmwareMCU, base: int, value: int, extended: bool) -> None:
     """CANIDToRegs: the ID into SIDH (at `base`), SIDL (and EIDH, EIDL when extended)."""
     sidh, sidl, eidh, eidl = pack_id(value, extended)
     mcu.write(base, sidh)
