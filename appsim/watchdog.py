@@ -11,15 +11,12 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
+from appsim.errors import FirmwareHung
 
 if TYPE_CHECKING:
     from appsim.sim import Simulator
 
 WATCHDOG_SECONDS = 2.0
-
-
-class FirmwareHung(RuntimeError):
-    """The firmware ran for seconds without reading or writing a register: an endless loop."""
 
 
 @contextmanager

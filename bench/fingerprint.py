@@ -43,7 +43,7 @@ def _full_load_lines() -> list[str]:
 
 def _verdict_lines(seed: int = 2024) -> list[str]:
     from appsim.workshop.checks import EXERCISES, check
-    from appsim.workshop.classroom import SOLUTIONS
+    from appsim.workshop.course import SOLUTIONS
 
     files = {exercise: SOLUTIONS / f"{exercise}.py" for exercise in EXERCISES}
     files["demo1"] = SOLUTIONS / "demo1_monitor.py"

@@ -10,7 +10,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from appsim.workshop.classroom import EXERCISES, SOLUTIONS
+from appsim.workshop.course import CLASSROOM_EXERCISES as EXERCISES
+from appsim.workshop.course import SOLUTIONS
 
 def one_submission_s(seed: int = 1) -> float:
     """Wall seconds to check the solutions of Ex1..Ex6 as one student's submission (every check must pass)."""

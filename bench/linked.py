@@ -13,7 +13,7 @@ import can
 
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
-from appsim.workshop.classroom import MASTER_FIRMWARE, SOLUTIONS
+from appsim.workshop.course import MASTER_FIRMWARE, SOLUTIONS
 from appsim.bus.link import BusLink
 from appsim.bus.realtime import WallClock
 from appsim.sim import Simulator

@@ -10,7 +10,8 @@ import pytest
 from workshop import KIT, MS, classroom, payload, sent
 
 from appsim.bus.wire import Bus
-from appsim.workshop.classroom import Classroom, station_ids
+from appsim.workshop.classroom import Classroom
+from appsim.workshop.course import station_ids
 from appsim.firmware.loader import FirmwareError, constants, load_firmware
 from appsim.sim import Simulator
 

@@ -18,7 +18,7 @@ PC = """
 import json, sys
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
-from appsim.workshop.classroom import MASTER_FIRMWARE, SOLUTIONS
+from appsim.workshop.course import MASTER_FIRMWARE, SOLUTIONS
 from appsim.bus.link import BusLink
 from appsim.firmware.loader import load_firmware
 from appsim.bus.realtime import WallClock

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 from appsim.board import font5x7
 from appsim.chip.mcu import PIC18F8680
+from appsim.errors import NotInitialised
 
 if TYPE_CHECKING:
     import numpy as np
@@ -35,10 +36,6 @@ class Write(NamedTuple):
     line: int
     column: int
     text: str
-
-
-class NotInitialised(RuntimeError):
-    """A GLCD function was called before GLCD_Initial()."""
 
 
 class GLCD:

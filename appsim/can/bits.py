@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from appsim.can.frame import CanFrame
+from appsim.errors import CrcError, FormError, StuffError, WireError
 
 __all__ = [
     "INTERMISSION_BITS",
@@ -212,31 +213,6 @@ def encode_annotated(frame: CanFrame) -> list[WireBit]:
         out.append(WireBit(1 - last, out[-1].field, stuff=True))
     out.extend(WireBit(int(level), field) for level, field in zip(_TAIL, _TAIL_FIELDS))
     return out
-
-
-class WireError(ValueError):
-    """A bit sequence a CAN controller would reject; `position` is the wire bit (SOF = 0) where it sees it."""
-
-    def __init__(self, position: int, message: str) -> None:
-        super().__init__(message)
-        self.position = position
-
-
-class StuffError(WireError):
-    """Six equal bits in a row between SOF and the end of the CRC sequence."""
-
-
-class CrcError(WireError):
-    """The received CRC sequence differs from the CRC of the received SOF..data bits."""
-
-    def __init__(self, position: int, message: str, received: int, computed: int) -> None:
-        super().__init__(position, message)
-        self.received = received
-        self.computed = computed
-
-
-class FormError(WireError):
-    """A fixed-form bit (CRC delimiter, ACK delimiter, EOF) is dominant, or the sequence ends early."""
 
 
 _LEVEL_NAME = ("dominant", "recessive")

@@ -8,6 +8,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
+from appsim.errors import BitTimingError
 
 SYNC_SEG_TQ = 1
 IPT_TQ = 2
@@ -21,10 +22,6 @@ BRGCON3_IMPLEMENTED = 0x47
 
 SEED_PROP_SEG_TQ = 2
 SEED_PS2_SHARE = Fraction(3, 10)
-
-
-class BitTimingError(ValueError):
-    """A bit-timing setting that cannot be programmed or breaks a datasheet rule; the message says which."""
 
 
 def _exact(value: int | float | Fraction) -> Fraction:

@@ -5,13 +5,10 @@ The logical content only (identifier, format, RTR, DLC, data); how it looks on t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from appsim.errors import FrameError
 
 STANDARD_ID_MAX = 0x7FF
 EXTENDED_ID_MAX = 0x1FFF_FFFF
-
-
-class FrameError(ValueError):
-    """A frame that CAN cannot carry, with what to change."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -8,6 +8,7 @@ import string
 from dataclasses import dataclass
 
 from appsim.can.frame import CanFrame, FrameError
+from appsim.errors import SlcanError
 
 OK = b"\r"                 # a command done
 ERROR = b"\a"              # BELL: a command refused
@@ -17,10 +18,6 @@ TIMESTAMP_WRAP_MS = 60_000  # Z1 time stamps count milliseconds 0..59999, then w
 BIT_RATES = {0: 10_000, 1: 20_000, 2: 50_000, 3: 100_000, 4: 125_000,
              5: 250_000, 6: 500_000, 7: 800_000, 8: 1_000_000}
 VERSION = "V1013"          # hardware 1.0, software 1.3 (python-can reads two decimal digits of each)
-
-
-class SlcanError(ValueError):
-    """A line that is not an SLCAN command, with what is wrong; the adapter answers it with BELL."""
 
 
 @dataclass(frozen=True)

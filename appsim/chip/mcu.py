@@ -7,16 +7,14 @@ peripheral event changes something it reads: a busy-wait costs one loop turn per
 from __future__ import annotations
 
 import contextvars
-import sys
 from collections.abc import Callable, Iterable
-from types import CodeType
 from typing import Any, Protocol
 
 import greenlet
 
 from appsim.chip.ecan import registers as ecan_registers
 from appsim.chip.ecan.controller import ECAN
-from appsim.chip.sfr import RUNNING_MCU, GLCDPort, SFRNames
+from appsim.chip.sfr import RUNNING_MCU, GLCDPort, SFRNames, firmware_entry, firmware_location, forget_firmware_code
 from appsim.sim import PS_PER_SECOND, Process, Simulator
 
 FOSC_HZ = 40_000_000            # APP023: 10 MHz crystal with the 4x PLL
@@ -97,7 +95,7 @@ class PIC18F8680(SFRNames):
             return
         if address in self.read_side_effects:
             self._polled_pure = False
-        site = (address, _firmware_location() if site is None else site)
+        site = (address, firmware_location() if site is None else site)
         if site not in self._polled_sites:
             self._polled_sites.add(site)
             return
@@ -144,30 +142,11 @@ class PIC18F8680(SFRNames):
         """Start firmware `main` on this MCU (after a reset, as programming the chip would)."""
         if self.process is not None and not self.process.dead:
             self.process.stop()
-        _IS_KIT.clear()          # a cache: new firmware brings new code objects (a grader loads thousands)
+        forget_firmware_code()          # new firmware brings new code objects (a grader loads thousands)
         context = contextvars.Context()
         context.run(RUNNING_MCU.set, self)                  # what `current_mcu()` gives its firmware
         self.process = self.sim.start(self.name, main, context=context)
         return self.process
 
 
-# id(code object) -> (that code object, kept alive so the id stays its own; is it this package's code?).
-# Keyed by id: a code object's own hash is recomputed from its whole content on every call.
-_IS_KIT: dict[int, tuple[CodeType, bool]] = {}
-
-
-def _firmware_location() -> tuple[tuple[int, int], ...]:
-    """Where in the firmware (outside this package) the current access comes from: its call stack,
-    as (id of the code object, instruction offset) of each firmware frame."""
-    frame = sys._getframe(2)
-    location = []
-    is_kit = _IS_KIT
-    while frame is not None:
-        code = frame.f_code
-        known = is_kit.get(id(code))
-        if known is None:
-            known = is_kit[id(code)] = (code, frame.f_globals.get("__name__", "").startswith("appsim."))
-        if not known[1]:
-            location.append((id(code), frame.f_lasti))
-        frame = frame.f_back
-    return tuple(location)
+firmware_entry(Process._body)       # a process runs its firmware's main() from there

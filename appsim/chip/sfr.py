@@ -5,10 +5,14 @@ firmware library, which runs in the grader's sandbox without the simulator.
 """
 from __future__ import annotations
 
+import sys
+from collections.abc import Callable
 from contextvars import ContextVar
+from types import CodeType
 from typing import Any, Protocol
 
 from appsim.chip.ecan import registers as ecan_registers
+from appsim.errors import NotOnABoard
 
 Bitfields = dict[str, dict[str, tuple[int, int]]]       # register -> field -> (shift, width)
 
@@ -122,10 +126,6 @@ class FirmwareMCU(Protocol):
     def set_bits(self, name: str, mask: int, on: bool) -> None: ...
 
 
-class NotOnABoard(RuntimeError):
-    """A firmware function was called outside firmware running on a simulated board."""
-
-
 RUNNING_MCU: ContextVar[Any] = ContextVar("appsim_running_mcu")
 
 
@@ -137,3 +137,42 @@ def current_mcu() -> FirmwareMCU:
             "this is firmware: it runs on a simulated board, from main(). "
             "Start it with a board's run(main) (or `appsim board FILE`), not by calling it directly.")
     return mcu
+
+
+# id(code object) -> (that code object, kept alive so the id stays its own; FIRMWARE, KIT or ENTRY). Keyed by id: a
+# code object's own hash is recomputed from its whole content on every call.
+FIRMWARE, KIT, ENTRY = 0, 1, 2
+_KINDS: dict[int, tuple[CodeType, int]] = {}
+_ENTRIES: set[CodeType] = set()
+
+
+def firmware_entry(function: Callable[..., object]) -> None:
+    """Mark `function` as what calls a firmware's main(): the walk of `firmware_location` stops there."""
+    _ENTRIES.add(function.__code__)
+    _KINDS.clear()
+
+
+def firmware_location() -> tuple[tuple[int, int], ...]:
+    """Where in the firmware (outside this package) the current register access comes from: its call stack up to its
+    main(), as (id of the code object, instruction offset) of each firmware frame. A polling loop reads from one place."""
+    frame = sys._getframe(2)
+    location = []
+    kinds = _KINDS
+    while frame is not None:
+        code = frame.f_code
+        known = kinds.get(id(code))
+        if known is None:
+            kind = (ENTRY if code in _ENTRIES else
+                    KIT if frame.f_globals.get("__name__", "").startswith("appsim.") else FIRMWARE)
+            known = kinds[id(code)] = (code, kind)
+        if known[1] == FIRMWARE:
+            location.append((id(code), frame.f_lasti))
+        elif known[1] == ENTRY:
+            break
+        frame = frame.f_back
+    return tuple(location)
+
+
+def forget_firmware_code() -> None:
+    """Empty the cache behind `firmware_location` (new firmware brings new code objects)."""
+    _KINDS.clear()

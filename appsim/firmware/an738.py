@@ -13,12 +13,9 @@ from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import pack_id, unpack_id
 from appsim.chip.sfr import FirmwareMCU
 from appsim.firmware.runtime import library_call
+from appsim.errors import AN738Error
 
 TRUE, FALSE = True, False
-
-
-class AN738Error(ValueError):
-    """A call the C library would accept and silently get wrong (or hang on)."""
 
 
 class CAN_OP_MODE(enum.IntEnum):

@@ -11,10 +11,13 @@ from appsim.chip.sfr import GLCDPort, current_mcu
 from appsim.firmware.runtime import library_call
 
 
+NO_GLCD = "this MCU has no GLCD: the GLCD functions need firmware running on an APP023 board"
+
+
 def _display() -> GLCDPort:
     display = current_mcu().glcd
     if display is None:
-        raise RuntimeError("this MCU has no GLCD: the GLCD functions need firmware running on an APP023 board")
+        raise RuntimeError(NO_GLCD)
     library_call()
     return display
 

@@ -6,15 +6,14 @@ from __future__ import annotations
 
 import ast
 import itertools
+import traceback
 from collections.abc import Mapping
 from pathlib import Path
 from types import ModuleType
 
+from appsim.errors import FirmwareError
+
 _loads = itertools.count()
-
-
-class FirmwareError(Exception):
-    """A firmware file that cannot run, with what to do about it."""
 
 
 def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
@@ -31,17 +30,21 @@ def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) ->
     try:
         code = compile(tree, str(path), "exec")
     except SyntaxError as error:
-        raise FirmwareError(f"{path}, line {error.lineno}: {error.msg}: fix the Python syntax there") from None
+        raise _syntax_error(path, error) from None
     module = ModuleType(f"firmware_{path.stem}_{next(_loads)}")
     module.__file__ = str(path)
     try:
         exec(code, vars(module))
     except Exception as error:
-        raise FirmwareError(f"{path} failed while loading, before main() ran: {type(error).__name__}: "
-                            f"{error}. Only constants and functions belong at the top of the file; "
-                            "CAN and LCD calls go inside main().") from error
+        report = traceback.TracebackException.from_exception(error)
+        mine = [frame for frame in report.stack if frame.filename == str(path)]
+        where = f"\n(line {mine[-1].lineno}: {mine[-1].line})" if mine else ""
+        what = list(report.format_exception_only())[-1].strip()
+        raise FirmwareError(f"{path.name} failed while loading, before main() ran: {what}. Only constants and "
+                            f"functions belong at the top of the file; CAN and LCD calls go inside main().{where}"
+                            ) from error
     if not callable(getattr(module, "main", None)):
-        raise FirmwareError(f"{path} has no main(): a firmware file defines `def main():` that loops "
+        raise FirmwareError(f"{path.name} has no main(): a firmware file defines `def main():` that loops "
                             "forever, as main() does in EX1.C")
     return module
 
@@ -56,9 +59,22 @@ def _parse(path: Path) -> ast.Module:
         raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py file such as "
                             "exercises/ex1.py")
     try:
-        return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+        source = path.read_bytes()
+    except OSError as error:
+        raise FirmwareError(f"{path} cannot be read: {error.strerror}") from None
+    try:
+        return ast.parse(source.decode("utf-8"), filename=str(path))
+    except UnicodeDecodeError as error:
+        raise FirmwareError(f"{path.name} is not UTF-8 text (byte {error.start} is 0x{source[error.start]:02X}): "
+                            "save it as UTF-8, as every Python editor does by default") from None
     except SyntaxError as error:
-        raise FirmwareError(f"{path}, line {error.lineno}: {error.msg}: fix the Python syntax there") from None
+        raise _syntax_error(path, error) from None
+    except (ValueError, RecursionError, MemoryError) as error:    # NUL bytes; nesting too deep for the parser
+        raise FirmwareError(f"{path.name} cannot be parsed as Python ({type(error).__name__}: {error})") from None
+
+
+def _syntax_error(path: Path, error: SyntaxError) -> FirmwareError:
+    return FirmwareError(f"{path.name}, line {error.lineno}: {error.msg}: fix the Python syntax there")
 
 
 def _assignments(tree: ast.Module) -> dict[str, list[ast.Assign | ast.AnnAssign]]:
@@ -88,3 +104,13 @@ def _apply_defines(tree: ast.Module, defines: Mapping[str, int], path: Path) -> 
             raise FirmwareError(f"-D {name}={value!r}: a define is an integer, such as {name}=0x110")
         for statement in assigned[name]:
             statement.value = ast.copy_location(ast.Constant(value), statement)
+
+
+def crash_message(error: BaseException, filename: str | None) -> str:
+    """What a student reads when main() raised `error`: the line of their own file it came from, the error as
+    Python words it (with its "Did you mean ...?"), and what that means for the board."""
+    report = traceback.TracebackException.from_exception(error)
+    mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
+    place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
+    what = list(report.format_exception_only())[-1].strip()
+    return f"main() crashed{place}: {what}\nThe board stopped there, so nothing after it can be judged."

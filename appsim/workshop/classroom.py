@@ -20,19 +20,9 @@ from appsim.bus.wire import Bus
 from appsim.firmware.loader import FirmwareError, constants, load_firmware
 from appsim.chip.mcu import PIC18F8680
 from appsim.sim import PS_PER_SECOND
+from appsim.workshop.course import CLASSROOM_EXERCISES, MASTER_FIRMWARE, SOLUTIONS, STATIONS, station_ids
 
-KIT = Path(__file__).resolve().parents[2]
-SOLUTIONS = KIT / "solutions"
-MASTER_FIRMWARE = Path(__file__).resolve().with_name("master.py")
-STATIONS = 6
-EXERCISES = range(1, 7)
 DEFAULT_POTENTIOMETERS = (100, 250, 400, 550, 700, 850)
-
-
-def station_ids(station: int) -> dict[str, int]:
-    """Station k's constants as the workshop assigns them: MESSAGE_ID1 and the Ex5 RTR ID."""
-    _check_station(station, STATIONS)
-    return {"MESSAGE_ID1": 0x100 + 0x10 * (station - 1), "RTR_ID": 0x81 + (station - 1)}
 
 
 def station_defines(names: Collection[str], station: int) -> dict[str, int]:
@@ -71,7 +61,7 @@ class Classroom:
     def __init__(self, bus: Bus, exercise: int, *, stations: int = STATIONS,
                  potentiometers: Sequence[int] | None = None, master_potentiometer: int = 512,
                  firmware_dir: str | Path = SOLUTIONS, seed: int | None = None, monitor: bool = True):
-        if exercise not in EXERCISES:
+        if exercise not in CLASSROOM_EXERCISES:
             raise ValueError(f"exercise {exercise!r} does not exist: the workshop has EX1.C .. EX6.C (1..6)")
         if not isinstance(stations, int) or not 1 <= stations <= STATIONS:
             raise ValueError(f"the classroom has 1..{STATIONS} student stations (0x100 .. 0x150); got {stations!r}")

@@ -12,6 +12,7 @@ from appsim.can.bittiming import BitTiming
 from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import Filter, buffer_hit, raw29, unpack_id
 from appsim.can.frame import CanFrame
+from appsim.errors import UnsupportedMode
 
 
 class Mode(enum.IntEnum):
@@ -31,10 +32,6 @@ class Mode(enum.IntEnum):
 
 # Looked up rather than built: CANCON is written at every CANCON.WIN change, and enum construction is slow.
 _MODE_OF_REQOP = tuple(Mode.CONFIGURATION if reqop & 0b100 else Mode(reqop) for reqop in range(8))
-
-
-class UnsupportedMode(ValueError):
-    """ECANCON selects an ECAN mode the kit does not model."""
 
 
 class Listener(Protocol):

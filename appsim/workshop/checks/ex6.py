@@ -14,7 +14,7 @@ from appsim.workshop.checks.ex3 import master_frames
 from appsim.workshop.checks.judging import data_frames, why_silent
 from appsim.workshop.checks.trial import MS, Trial, count, describe, hex_id, listing, ms, took
 from appsim.workshop.checks.verdict import CheckResult
-from appsim.workshop.classroom import station_ids
+from appsim.workshop.course import station_ids
 from appsim.firmware import Delay1KTCYx
 
 ANSWERS = "answers an RTR for MESSAGE_ID1 with its A/D"

@@ -6,116 +6,127 @@ from __future__ import annotations
 
 import random
 import re
-import traceback
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
+from typing import Protocol
 
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus, BusEvent
-from appsim.workshop.classroom import STATIONS, Classroom, station_ids
+from appsim.can.frame import STANDARD_ID_MAX, CanFrame
 from appsim.chip.ecan.controller import Mode
-from appsim.can.frame import CanFrame
-from appsim.firmware.loader import FirmwareError, load_firmware
 from appsim.chip.mcu import PIC18F8680
+from appsim.errors import AppsimError, FirmwareError
+from appsim.firmware.loader import load_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.workshop.classroom import Classroom
+from appsim.workshop.course import CLASSROOM_BIT_RATE, MASTER_ID, RTR_IDS, STATION_IDS, STATIONS
+from appsim.workshop.faults import Fault, fault_of
 
-KIT = Path(__file__).resolve().parents[3]
 MS = PS_PER_SECOND // 1000
-BIT_RATE = 125_000
 TIMER1_PERIOD_PS = 65536 * 8 * 100_000          # Fosc/4 = 10 MHz with 1:8: 52.4288 ms
-STATION_IDS = tuple(station_ids(k)["MESSAGE_ID1"] for k in range(1, STATIONS + 1))
-RTR_IDS = tuple(station_ids(k)["RTR_ID"] for k in range(1, STATIONS + 1))
-MASTER_ID = 0x088
 MODES = {Mode.NORMAL: "Normal", Mode.DISABLE: "Disable", Mode.LOOPBACK: "Loopback",
          Mode.LISTEN_ONLY: "Listen-only", Mode.CONFIGURATION: "Configuration"}
+__all__ = ["MASTER_ID"]
 
 
-class Fatal(Exception):
-    """The firmware cannot be judged: it did not load, crashed, returned, or has no station's ID."""
+class Fatal(AppsimError):
+    """The firmware cannot be judged: `fault` says why (it did not load, crashed, returned, has no station's ID...)."""
+
+    def __init__(self, fault: Fault):
+        super().__init__(fault.message)
+        self.fault = fault
 
 
 @dataclass(frozen=True)
 class Firmware:
-    """What the student handed in: something a board can run, and where its code lives (for line numbers)."""
+    """What the student handed in, loaded: what a board runs, what it calls itself, where its code lives.
 
-    runnable: ModuleType | Callable[[], object]
+    `identity` holds the integers the loaded firmware gives MESSAGE_ID1 and RTR_ID (missing if not integers): the
+    firmware's own word, which is safe to take, since the verdict comes from what it then does on the bus.
+    """
+
+    runnable: Callable[[], object]
     filename: str | None
     label: str
-
-    @property
-    def module(self) -> ModuleType | None:
-        return self.runnable if isinstance(self.runnable, ModuleType) else None
+    identity: Mapping[str, int] = field(default_factory=dict)
 
 
-def resolve(firmware: str | Path | ModuleType | Callable[[], object]) -> Firmware:
-    """The firmware as a runnable thing; a file that does not load is `Fatal`, with its line."""
+class Loadable(Protocol):
+    """Firmware that loads itself elsewhere (the grader's sandbox): `load()` gives it, or raises `Fatal`."""
+
+    def load(self) -> Firmware: ...
+
+
+IDENTITY_NAMES = ("MESSAGE_ID1", "RTR_ID")
+
+
+def identity_of(module: ModuleType) -> dict[str, int]:
+    """The module's MESSAGE_ID1 and RTR_ID, where they are integers."""
+    values = {name: getattr(module, name, None) for name in IDENTITY_NAMES}
+    return {name: value for name, value in values.items() if isinstance(value, int) and not isinstance(value, bool)}
+
+
+def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable) -> Firmware:
+    """The firmware as a runnable thing; one that does not load is `Fatal`, with its line."""
     if isinstance(firmware, (str, Path)):
         path = Path(firmware)
         try:
             module = load_firmware(path)
         except FirmwareError as error:
-            raise Fatal(_load_error(error, path)) from None
-        return Firmware(module, str(path), _short(path))
+            raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
+        return Firmware(module.main, str(path), path.name, identity_of(module))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):
-            raise Fatal(f"{firmware.__name__} has no main(): a firmware defines `def main():` that loops "
-                        "forever, as main() does in EX1.C")
+            raise Fatal(Fault("load", f"{firmware.__name__} has no main(): a firmware defines `def main():` that "
+                                      "loops forever, as main() does in EX1.C"))
         filename = getattr(firmware, "__file__", None)
-        return Firmware(firmware, filename, _short(Path(filename)) if filename else firmware.__name__)
+        label = Path(filename).name if filename else firmware.__name__
+        return Firmware(firmware.main, filename, label, identity_of(firmware))
+    load = getattr(firmware, "load", None)
+    if callable(load):
+        return load()
     if callable(firmware):
         code = getattr(firmware, "__code__", None)
         return Firmware(firmware, code.co_filename if code else None, f"{getattr(firmware, '__name__', 'main')}()")
     raise TypeError(f"firmware is a file path, a loaded firmware module or a main() function; got {firmware!r}")
 
 
-def _short(path: Path) -> str:
-    try:
-        return str(path.resolve().relative_to(KIT))
-    except ValueError:
-        return str(path)
+def placement(exercise: str, firmware: Firmware, message_id: int | None) -> tuple[int, int]:
+    """The station (1..6) the student's board takes and the identifier it sends as MESSAGE_ID1.
 
-
-def _load_error(error: FirmwareError, path: Path) -> str:
-    text = str(error)
-    cause = error.__cause__
-    if cause is not None and cause.__traceback__ is not None:
-        where = _student_frame(cause.__traceback__, str(path))
-        if where is not None:
-            text += f"\n(line {where.lineno}: {where.line})"
-    return f"the firmware does not load: {text}"
-
-
-def _student_frame(tb, filename: str | None) -> traceback.FrameSummary | None:
-    """The last line of the student's own file in a traceback (none for code of the kit's, such as a proxy)."""
-    if filename is None or Path(filename).resolve().is_relative_to(KIT / "appsim"):
-        return None
-    mine = [frame for frame in traceback.extract_tb(tb) if frame.filename == filename]
-    return mine[-1] if mine else None
-
-
-def station_of(exercise: str, firmware: Firmware, message_id: int | None) -> int:
-    """The station (1..6) the student's board takes: `message_id`, else the firmware's MESSAGE_ID1 (Ex5: RTR_ID)."""
+    From `message_id` if given, else from the firmware as loaded: its MESSAGE_ID1 (Ex5: its RTR_ID names the
+    station); without one, station 1. Ex1 runs off the bus in Loopback mode, so any standard identifier will do
+    there (the workshop's own fix sets MESSAGE_ID1 to the filter's 0x088); on the bus it must be a station's.
+    """
     if message_id is not None:
-        return _station_by(message_id, "message_id", STATION_IDS, "0x100, 0x110 .. 0x150")
-    module = firmware.module
-    if module is None:
-        return 1
-    if exercise == "ex5" and isinstance(getattr(module, "RTR_ID", None), int):
-        return _station_by(module.RTR_ID, "RTR_ID", RTR_IDS, "0x81 .. 0x86 (0x100 -> 0x81 ... 0x150 -> 0x86)")
-    value = getattr(module, "MESSAGE_ID1", None)
-    if isinstance(value, int):
-        return _station_by(value, "MESSAGE_ID1", STATION_IDS, "0x100, 0x110 .. 0x150")
-    return 1
+        return _station_by(message_id, "message_id", STATION_IDS, "0x100, 0x110 .. 0x150"), message_id
+    own = firmware.identity.get("MESSAGE_ID1")
+    if exercise == "ex1" and own is not None:
+        if not 0 <= own <= STANDARD_ID_MAX:
+            raise Fatal(Fault("station", f"MESSAGE_ID1 = {_shown(own)} is not a standard identifier: CAN's "
+                                         f"11-bit identifiers are 0x000 .. 0x{STANDARD_ID_MAX:03X}."))
+        return 1, own
+    rtr_id = firmware.identity.get("RTR_ID")
+    if exercise == "ex5" and rtr_id is not None:
+        station = _station_by(rtr_id, "RTR_ID", RTR_IDS, "0x81 .. 0x86 (0x100 -> 0x81 ... 0x150 -> 0x86)")
+        return station, STATION_IDS[station - 1]
+    if own is None:
+        return 1, STATION_IDS[0]
+    station = _station_by(own, "MESSAGE_ID1", STATION_IDS, "0x100, 0x110 .. 0x150")
+    return station, own
 
 
-def _station_by(value: object, name: str, ids: tuple[int, ...], which: str) -> int:
-    if isinstance(value, int) and not isinstance(value, bool) and value in ids:
+def _station_by(value: int, name: str, ids: tuple[int, ...], which: str) -> int:
+    if value in ids:
         return ids.index(value) + 1
-    shown = f"0x{value:03X}" if isinstance(value, int) else repr(value)
-    raise Fatal(f"{name} = {shown} is not a station's: the classroom's stations use {which}, one each. "
-                f"Set {name} to the one assigned to you.")
+    raise Fatal(Fault("station", f"{name} = {_shown(value)} is not a station's: the classroom's stations use "
+                                 f"{which}, one each. Set {name} to the one assigned to you."))
+
+
+def _shown(value: int) -> str:
+    return f"0x{value:03X}" if value >= 0 else str(value)
 
 
 def hex_id(value: int) -> str:
@@ -156,17 +167,17 @@ def decimal_values(text: str) -> list[int]:
 class Trial:
     """The classroom for one check run: seeded potentiometers, the student's board, the simulated clock."""
 
-    def __init__(self, exercise: str, firmware: Firmware, station: int, seed: int):
+    def __init__(self, exercise: str, firmware: Firmware, station: int, seed: int, own_id: int | None = None):
         self.exercise = exercise
         self.firmware = firmware
         self.station = station
-        self.own_id = STATION_IDS[station - 1]
+        self.own_id = STATION_IDS[station - 1] if own_id is None else own_id
         self.rtr_id = RTR_IDS[station - 1]
         draw = random.Random(seed)
         values = draw.sample(range(1024), STATIONS + 3)       # distinct, so no value can stand in for another
         self.potentiometers = values[:STATIONS]
         self.master_potentiometers = values[STATIONS:]
-        self.bus = Bus(Simulator(), BIT_RATE)
+        self.bus = Bus(Simulator(), CLASSROOM_BIT_RATE)
         self._room: Classroom | None = None
         self._board: APP023 | None = None
 
@@ -204,19 +215,17 @@ class Trial:
 
     # -------------------------------------------------------------- running
     def run(self, seconds: float) -> None:
-        """Run the simulated clock; the student's firmware crashing or returning is `Fatal`."""
+        """Run the simulated clock; the student's firmware crashing, hanging or returning is `Fatal`."""
         sim = self.bus.sim
         sim.run(until=sim.now + round(seconds * PS_PER_SECOND))
         process = self.board.mcu.process
         assert process is not None, "the student's firmware was started in Trial.classroom"
         if process.failure is not None:
-            where = _student_frame(process.failure.__traceback__, self.firmware.filename)
-            place = f" at line {where.lineno} of {Path(where.filename).name} (`{where.line}`)" if where else ""
-            raise Fatal(f"main() crashed{place}: {process.failure_text.strip().splitlines()[-1]}\n"
-                        "The board stopped there, so nothing after it can be judged.")
+            raise Fatal(fault_of(process.failure, self.firmware.filename))
         if process.finished:
-            raise Fatal(f"main() returned (by {ms(self.now)}): firmware has nowhere to return to, so main() must "
-                        "loop forever (`while True:` around the work, as `while(1)` in EX1.C's main()).")
+            raise Fatal(Fault("returned", f"main() returned (by {ms(self.now)}): firmware has nowhere to return to, "
+                                          "so main() must loop forever (`while True:` around the work, as "
+                                          "`while(1)` in EX1.C's main())."))
         for board in self.bus.boards():
             other = board.process
             if board is not self.board.mcu and other is not None and other.failure is not None:

@@ -26,6 +26,7 @@ class Verdict:
     exercise: str
     seed: int
     checks: tuple[CheckResult, ...]
+    fault: str | None = None        # why the firmware could not be judged (appsim.workshop.faults.KINDS), else None
 
     @property
     def score(self) -> int:
@@ -46,7 +47,7 @@ class Verdict:
 
     def to_dict(self) -> dict[str, Any]:
         return {"exercise": self.exercise, "score": self.score, "max_score": self.max_score, "seed": self.seed,
-                "checks": [{"name": c.name, "passed": c.passed, "message": c.message, "points": c.points}
+                "fault": self.fault, "checks": [{"name": c.name, "passed": c.passed, "message": c.message, "points": c.points}
                            for c in self.checks]}
 
     def __str__(self) -> str:

@@ -1,0 +1,88 @@
+"""Every error the kit raises, as one tree under `AppsimError`; each is also the fitting builtin (as python-can's are).
+
+One module, imported by the firmware library too, so an error raised on the board crosses the grading sandbox intact.
+"""
+from __future__ import annotations
+
+
+class AppsimError(Exception):
+    """Anything the kit refuses or reports as an error; the message says what is wrong and what to do."""
+
+
+# ------------------------------------------------------------------ CAN
+class FrameError(AppsimError, ValueError):
+    """A frame that CAN cannot carry, with what to change."""
+
+
+class BitTimingError(AppsimError, ValueError):
+    """A bit-timing setting that cannot be programmed or breaks a datasheet rule; the message says which."""
+
+
+class WireError(AppsimError, ValueError):
+    """A bit sequence a CAN controller would reject; `position` is the wire bit (SOF = 0) where it sees it."""
+
+    def __init__(self, position: int, message: str) -> None:
+        super().__init__(message)
+        self.position = position
+
+
+class StuffError(WireError):
+    """Six equal bits in a row between SOF and the end of the CRC sequence."""
+
+
+class CrcError(WireError):
+    """The received CRC sequence differs from the CRC of the received SOF..data bits."""
+
+    def __init__(self, position: int, message: str, received: int, computed: int) -> None:
+        super().__init__(position, message)
+        self.received = received
+        self.computed = computed
+
+
+class FormError(WireError):
+    """A fixed-form bit (CRC delimiter, ACK delimiter, EOF) is dominant, or the sequence ends early."""
+
+
+class SlcanError(AppsimError, ValueError):
+    """A line that is not an SLCAN command, with what is wrong; the adapter answers it with BELL."""
+
+
+# ------------------------------------------------------------------ the chip and the board
+class UnsupportedMode(AppsimError, ValueError):
+    """ECANCON selects an ECAN mode the kit does not model."""
+
+
+class NotOnABoard(AppsimError, RuntimeError):
+    """A firmware function was called outside firmware running on a simulated board."""
+
+
+class NotInitialised(AppsimError, RuntimeError):
+    """A GLCD function was called before GLCD_Initial()."""
+
+
+# ------------------------------------------------------------------ firmware
+class FirmwareError(AppsimError):
+    """A firmware file that cannot run, with what to do about it."""
+
+
+class AN738Error(AppsimError, ValueError):
+    """A call the C library would accept and silently get wrong (or hang on)."""
+
+
+class FirmwareHung(AppsimError, RuntimeError):
+    """The firmware ran for seconds without reading or writing a register: an endless loop."""
+
+
+# ------------------------------------------------------------------ the workshop
+class GradeError(AppsimError):
+    """Input the grader cannot use (a path, a results file, an option), with what to do."""
+
+
+class SandboxUnavailable(AppsimError, OSError):
+    """This machine cannot isolate student firmware (no Linux namespaces, no bubblewrap), with what to do."""
+
+
+def by_name(name: str) -> type[Exception] | None:
+    """The kit's error class called `name` (for an error that crossed the grading sandbox), else None."""
+    found = globals().get(name)
+    return found if isinstance(found, type) and issubclass(found, AppsimError) else None

@@ -1,0 +1,292 @@
+"""`appsim grade`: a class's submissions, exercise by exercise, each firmware in its own sandbox, in parallel workers.
+
+The coordinator reads the submissions, checks every output path, makes sure the machine can isolate firmware, resumes
+from the results file, hands exercises to worker processes and keeps each submission's record as soon as it is whole.
+"""
+from __future__ import annotations
+
+import base64
+import collections
+import dataclasses
+import json
+import os
+import random
+import selectors
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import IO, Any, TextIO
+
+from appsim.errors import GradeError, SandboxUnavailable
+from appsim.workshop.course import EXERCISE_FILES, EXERCISES
+from appsim.workshop.faults import Fault
+from appsim.workshop.grading.results import (
+    Record,
+    ResultsFile,
+    check_output,
+    default_results,
+    kit_version,
+    printable,
+    record_of,
+    still_valid,
+    summary_line,
+    write_csv,
+    write_gradescope,
+)
+from appsim.workshop.grading.submissions import Submission, find_submissions
+from appsim.workshop.sandbox.children import BOOT_S, DEFAULT_LIMITS, Limits, Sandbox
+from appsim.workshop.sandbox.isolation import Isolation, isolation
+
+WORKER = "import sys; del sys.path[0]; from appsim.workshop.grading.worker import main; main()"
+SLACK_S = 30.0                      # a worker may take this much longer than an exercise's own limits, then it is ended
+ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest first, so the workers finish together
+
+
+# ====================================================================== one exercise, in a worker
+
+def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | None,
+                   seed: int, problem: dict[str, str] | None) -> Record:
+    """The record of one exercise: its firmware (`source`, handed in as `name`) checked in the sandbox, or a zero."""
+    from appsim.workshop.checks import check, not_judged
+    from appsim.workshop.sandbox.host import SandboxedFirmware
+
+    if source is None:
+        fault = Fault(**problem) if problem else Fault(
+            "missing", f"{EXERCISE_FILES[exercise]} is missing from this submission: nothing to grade for {exercise}")
+        return exercise_record(not_judged(exercise, seed, fault.kind, fault.message))
+    firmware = SandboxedFirmware(sandbox, name, source, sandbox.limits)
+    try:
+        verdict = check(exercise, firmware, seed=seed)
+    except Exception as error:          # the checks themselves failed: still a record, never a lost class
+        verdict = not_judged(exercise, seed, "grader", f"the checks could not judge this firmware: "
+                                                       f"{type(error).__name__}: {error}")
+    finally:
+        firmware.close()
+    return exercise_record(verdict)
+
+
+def exercise_record(verdict: Any) -> Record:
+    data = verdict.to_dict()
+    return {"score": data["score"], "max_score": data["max_score"], "fault": data["fault"], "checks": data["checks"]}
+
+
+# ====================================================================== the command
+
+def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: Path | None = None,
+        gradescope_path: Path | None = None, jobs: int | None = None, seed: int | None = None,
+        limits: Limits = DEFAULT_LIMITS, trusted: bool = False, regrade: bool = False,
+        out: TextIO = sys.stdout) -> list[Record]:
+    """Grade the submissions under `paths`, resuming from `results`; the records of these submissions, by name."""
+    if sys.platform == "win32":
+        raise GradeError("appsim grade runs on Linux (or macOS with --trusted); on Windows, run it in WSL")
+    results = results or default_results([Path(p) for p in paths])
+    check_output(results, "the results file (--json)")
+    if csv_path is not None:
+        check_output(csv_path, "the gradebook (--csv)")
+    walls = None if trusted else _walls([*map(Path, paths), results, csv_path, gradescope_path])
+    with _Pool(limits, walls, jobs) as pool:           # the workers load while the submissions are read
+        submissions = find_submissions([Path(p) for p in paths])
+        if gradescope_path is not None:
+            check_output(gradescope_path, "the Gradescope output (--gradescope)", folder=len(submissions) > 1)
+        kit = kit_version()
+        book = ResultsFile(results)
+        try:
+            previous = book.records()
+            if seed is None:
+                seeds = collections.Counter(previous[s.name]["seed"] for s in submissions if s.name in previous)
+                seed = seeds.most_common(1)[0][0] if seeds else random.SystemRandom().randrange(2**32)
+            todo = [s for s in submissions if regrade or not still_valid(previous.get(s.name), s.digest, seed, kit)]
+            kept = len(submissions) - len(todo)
+            print(f"appsim grade: {len(submissions)} submission(s), seed {seed} (the same seed gives the same "
+                  f"grades), results in {results}"
+                  + (f"; {kept} already graded there with this seed and kit, kept" if kept else "")
+                  + ("; NOT ISOLATED (--trusted)" if trusted else ""), file=out, flush=True)
+            for number, record in enumerate(pool.grade(todo, seed, kit), start=1):
+                book.append(record)
+                previous[record["submission"]] = record
+                print(f"[{kept + number}/{len(submissions)}] {summary_line(record)}", file=out, flush=True)
+            book.rewrite(previous.values())
+        finally:
+            book.close()
+    records = [previous[s.name] for s in submissions]
+    if csv_path is not None:
+        write_csv(csv_path, records)
+    if gradescope_path is not None:
+        write_gradescope(gradescope_path, records)
+    total, best = sum(r["score"] for r in records), sum(r["max_score"] for r in records)
+    print(f"graded {len(records)} submission(s): {total}/{best} points in all, mean "
+          f"{total / max(1, len(records)):.1f}/{records[0]['max_score'] if records else 0}; seed {seed}; results in "
+          f"{results}" + (f", gradebook {csv_path}" if csv_path else "")
+          + (f", Gradescope {gradescope_path}" if gradescope_path else ""), file=out)
+    return records
+
+
+def _walls(secrets: Sequence[Path | None]) -> Isolation:
+    try:
+        return isolation([path for path in secrets if path is not None])
+    except SandboxUnavailable as error:
+        raise GradeError(f"this machine cannot isolate student firmware: {error}. Nothing was graded. Grade on a "
+                         "Linux machine with bubblewrap, or, for a class whose code you trust (your own test "
+                         "submissions), add --trusted to run it without isolation (docs/grading.md)") from None
+
+
+# ====================================================================== the workers
+
+@dataclasses.dataclass
+class _Task:
+    number: int
+    submission: Submission
+    exercise: str
+
+    def line(self, seed: int) -> str:
+        name, source = self.submission.files.get(self.exercise, (EXERCISE_FILES[self.exercise], None))
+        problem = self.submission.problems.get(self.exercise)
+        return json.dumps({"task": self.number, "exercise": self.exercise, "name": name, "seed": seed,
+                           "source": None if source is None else base64.b64encode(source).decode(),
+                           "problem": None if problem is None else dataclasses.asdict(problem)}) + "\n"
+
+
+class _Worker:
+    """One grading process, its task now, and where its errors go (read only if it dies).
+
+    On Linux each worker keeps to one processor, and its sandboxed children with it: a register read hands the
+    processor from one to the other and back, which is cheaper on one processor than across two.
+    """
+
+    def __init__(self, settings: str, processor: int | None):
+        self.log: IO[bytes] = tempfile.TemporaryFile()
+        self.process = subprocess.Popen([sys.executable, "-c", WORKER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                        stderr=self.log, text=True, encoding="utf-8")
+        if processor is not None:
+            try:
+                os.sched_setaffinity(self.process.pid, {processor})
+            except OSError:
+                pass
+        assert self.process.stdin is not None and self.process.stdout is not None
+        self.stdin, self.stdout = self.process.stdin, self.process.stdout
+        self.stdin.write(settings)
+        self.stdin.flush()
+        self.task: _Task | None = None
+        self.deadline = 0.0
+
+    def give(self, task: _Task, seed: int, allowed_s: float) -> None:
+        self.task = task
+        self.deadline = time.monotonic() + allowed_s
+        self.stdin.write(task.line(seed))
+        self.stdin.flush()
+
+    def why_it_died(self) -> str:
+        self.end()
+        self.log.seek(0)
+        lines = self.log.read().decode("utf-8", "replace").strip().splitlines()
+        return lines[-1] if lines else f"it ended with status {self.process.returncode}"
+
+    def end(self) -> None:
+        if self.process.poll() is None:
+            self.process.kill()
+        self.process.wait()
+        for stream in (self.stdin, self.stdout):
+            try:
+                stream.close()
+            except OSError:
+                pass
+
+
+class _Pool:
+    """The grading workers: started at once (they load the simulator meanwhile), given exercises one at a time."""
+
+    def __init__(self, limits: Limits, walls: Isolation | None, jobs: int | None):
+        self.limits = limits
+        self.settings = json.dumps({"isolation": None if walls is None else dataclasses.asdict(walls),
+                                    "limits": dataclasses.asdict(limits)}) + "\n"
+        self.processors = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+        self.count = max(1, jobs or len(self.processors) or os.cpu_count() or 1)
+        self.workers = [self._worker(k) for k in range(self.count)]
+        self.restarts = 0
+
+    def __enter__(self) -> _Pool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for worker in self.workers:
+            worker.end()
+
+    def grade(self, submissions: Sequence[Submission], seed: int, kit: str) -> Iterator[Record]:
+        """Each submission's record as soon as all its exercises are graded (in no fixed order)."""
+        waiting = collections.deque(_Task(n, s, e) for n, (s, e) in
+                                    enumerate((s, e) for s in submissions for e in ORDER))
+        done: dict[str, dict[str, Record]] = {s.name: {} for s in submissions}
+        allowed_s = self.limits.time_s + BOOT_S + SLACK_S
+        selector = selectors.DefaultSelector()
+
+        def next_task(worker: _Worker) -> None:
+            if waiting:
+                worker.give(waiting.popleft(), seed, allowed_s)
+                selector.register(worker.stdout, selectors.EVENT_READ, worker)
+
+        def finish(task: _Task, result: Record) -> Record | None:
+            marks = done[task.submission.name]
+            marks[task.exercise] = result
+            if len(marks) < len(EXERCISES):
+                return None
+            return record_of(task.submission.name, task.submission.digest, seed, kit, marks)
+
+        try:
+            for worker in self.workers:
+                next_task(worker)
+            while any(worker.task is not None for worker in self.workers):
+                timeout = max(0.0, min(w.deadline for w in self.workers if w.task is not None) - time.monotonic())
+                for key, _ in selector.select(timeout):
+                    worker = key.data
+                    line = worker.stdout.readline()
+                    selector.unregister(worker.stdout)
+                    task, worker.task = worker.task, None
+                    assert task is not None
+                    if line:
+                        result = json.loads(line)["result"]
+                    else:
+                        result = _lost(task, seed, "the grader's worker process ended while grading it "
+                                                   f"({worker.why_it_died()})")
+                        worker = self._replace(worker)
+                    record = finish(task, result)
+                    if record is not None:
+                        yield record
+                    next_task(worker)
+                now = time.monotonic()
+                for worker in list(self.workers):
+                    if worker.task is not None and now > worker.deadline:
+                        selector.unregister(worker.stdout)
+                        task, worker.task = worker.task, None
+                        replacement = self._replace(worker)
+                        record = finish(task, _lost(task, seed, f"the grader did not finish it within {allowed_s:g} s"))
+                        if record is not None:
+                            yield record
+                        next_task(replacement)
+        finally:
+            selector.close()
+
+    def _replace(self, worker: _Worker) -> _Worker:
+        """A new worker in place of one that died or hung."""
+        worker.end()
+        self.restarts += 1
+        if self.restarts > 3 * self.count + 3:
+            raise GradeError(f"the grader's worker processes keep ending ({self.restarts} so far): something is wrong "
+                             "with this installation; run the same command again to resume what was graded")
+        index = self.workers.index(worker)
+        replacement = self.workers[index] = self._worker(index)
+        return replacement
+
+    def _worker(self, index: int) -> _Worker:
+        return _Worker(self.settings, self.processors[index % len(self.processors)] if self.processors else None)
+
+
+def _lost(task: _Task, seed: int, why: str) -> Record:
+    """The record of an exercise the grader itself failed on (not the student's doing)."""
+    from appsim.workshop.checks import not_judged
+
+    name = printable(task.submission.name)
+    print(f"appsim grade: {name} {task.exercise}: {why}", file=sys.stderr, flush=True)
+    return exercise_record(not_judged(task.exercise, seed, "grader", f"not graded: {why}. Grade it again"))

@@ -1,0 +1,195 @@
+"""A student's firmware inside the grader's sandbox: it loads the file it is sent, says what it calls itself, and runs
+main() with the board across a socket: each register read is a round trip, writes and cycles wait in a batch.
+
+Only the firmware library is here (AN738, the C18 headers, the GLCD library), as a C build links it in; the simulator
+and the checks stay with the grader, so nothing this process does to itself changes anything but its own behaviour.
+"""
+from __future__ import annotations
+
+import builtins
+import json
+import os
+import resource
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+from appsim import errors
+from appsim.chip.sfr import ADDRESSES, RUNNING_MCU, SFRNames, firmware_entry, firmware_location
+from appsim.errors import FirmwareError
+from appsim.firmware.loader import crash_message, load_firmware
+from appsim.workshop.sandbox import protocol as wire
+from appsim.workshop.sandbox.protocol import Channel
+
+WORK = Path("/firmware")            # the sandbox's own working directory (the grader's Isolation mounts it)
+
+
+class RemoteMCU(SFRNames):
+    """What `current_mcu()` gives the firmware here: the board's PIC18F8680, in the grader, across the pipes.
+
+    The batch is built in place behind room for its length, so a read is one write and one read of the pipes.
+    """
+
+    sfr_addresses = ADDRESSES
+
+    def __init__(self, channel: Channel):
+        self._channel = channel
+        self._pending = bytearray(wire.LENGTH.size) + wire.BATCH
+        self._empty = len(self._pending)
+        self.glcd = RemoteDisplay(self)
+
+    def read(self, address: int, site: object = None) -> int:
+        self._pending += wire.READ_ITEM.pack(wire.READ, _address(address), hash(firmware_location()))
+        self.flush()
+        reply = os.read(self._channel.read_fd, 1 << 16)
+        if len(reply) == 6 and reply[:5] == wire.VALUE_REPLY:
+            return reply[5]
+        self._channel.push(reply)
+        reply = self.answer()
+        if len(reply) != 2 or reply[:1] != wire.VALUE:
+            raise RuntimeError("the grader answered a register read with something else")
+        return reply[1]
+
+    def write(self, address: int, value: int) -> None:
+        self._pending += wire.WRITE_ITEM.pack(wire.WRITE, _address(address), value & 0xFF)
+        if len(self._pending) > wire.BATCH_BYTES:
+            self.flush()
+
+    def spend_cycles(self, cycles: int) -> None:
+        if not isinstance(cycles, int) or cycles < 0:
+            raise ValueError(f"instruction cycles are a whole number >= 0; got {cycles!r}")
+        self._pending += wire.SPEND_ITEM.pack(wire.SPEND, min(cycles, (1 << 64) - 1))
+        if len(self._pending) > wire.BATCH_BYTES:
+            self.flush()
+
+    def display(self, item: bytes) -> None:
+        self._pending += item
+        self.flush()
+        self.answer()
+
+    def flush(self) -> None:
+        """Send the batch (if it holds anything)."""
+        pending = self._pending
+        if len(pending) > self._empty:
+            wire.LENGTH.pack_into(pending, 0, len(pending) - wire.LENGTH.size)
+            try:
+                written = os.write(self._channel.write_fd, pending)
+                while written < len(pending):
+                    written += os.write(self._channel.write_fd, pending[written:])
+            except OSError:
+                os._exit(0)             # the grader went away
+            del pending[self._empty:]
+
+    def report(self, kind: bytes, text: str = "") -> None:
+        """Tell the grader how the run ends (after the accesses still waiting in the batch)."""
+        self.flush()
+        if not self._channel.send(kind + text.encode()[:wire.MAX_TEXT]):
+            os._exit(0)
+
+    def answer(self) -> bytes:
+        """The grader's answer to the access that ended the batch (an error the board raised, raised here)."""
+        reply = self._channel.receive()
+        if reply is None:
+            os._exit(0)                 # the grader ended this run
+        if reply[:1] == wire.ERROR:
+            name, text = json.loads(reply[1:])
+            raise _error_class(name)(text)
+        return reply
+
+
+class RemoteDisplay:
+    """The board's GLCD as the GLCD library reaches it, across the socket (see appsim.chip.sfr.GLCDPort)."""
+
+    def __init__(self, mcu: RemoteMCU):
+        self._mcu = mcu
+
+    def initial(self) -> None:
+        self._mcu.display(wire.DISPLAY + bytes([wire.INITIAL]))
+
+    def set_cursor(self, line: int, column: int) -> None:
+        clamp = (1 << 63) - 1
+        self._mcu.display(wire.CURSOR_ITEM.pack(wire.DISPLAY, wire.CURSOR, max(-clamp, min(line, clamp)),
+                                                max(-clamp, min(column, clamp))))
+
+    def write(self, codes: list[int]) -> None:
+        codes = codes[:0xFFFF]          # the screen shows 21 of them; the rest only moves the cursor further out
+        self._mcu.display(wire.TEXT_HEAD.pack(wire.DISPLAY, wire.TEXT, len(codes)) + bytes(codes))
+
+
+def _address(address: int) -> int:
+    if not isinstance(address, int) or address not in wire.ADDRESSES:
+        raise ValueError(f"the PIC18F8680's data memory has addresses 0x000..0xFFF; got {address!r}")
+    return address
+
+
+def _error_class(name: str) -> type[Exception]:
+    found = errors.by_name(name) or getattr(builtins, name, None)
+    return found if isinstance(found, type) and issubclass(found, Exception) else RuntimeError
+
+
+def _limit(settings: dict[str, int]) -> None:
+    with open("/proc/self/statm") as statm:
+        size = int(statm.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    cpu = settings["cpu_s"]
+    for limit, value in ((resource.RLIMIT_AS, size + (settings["memory_mb"] << 20)),
+                         (resource.RLIMIT_CPU, cpu), (resource.RLIMIT_NPROC, 0), (resource.RLIMIT_CORE, 0),
+                         (resource.RLIMIT_FSIZE, settings["file_mb"] << 20), (resource.RLIMIT_NOFILE, 32),
+                         (resource.RLIMIT_MEMLOCK, 0)):
+        hard = value + 1 if limit == resource.RLIMIT_CPU else value     # SIGXCPU first, then SIGKILL
+        try:
+            resource.setrlimit(limit, (value, hard))
+        except (ValueError, OSError):
+            resource.setrlimit(limit, (min(value, resource.getrlimit(limit)[1]),) * 2)
+
+
+def main(settings: dict[str, Any]) -> None:
+    """The child's life: boot, receive the firmware, load it, say what it calls itself, run main() when told."""
+    channel = Channel(settings["read_fd"], settings["write_fd"], wire.MAX_FROM_GRADER)
+    null = os.open(os.devnull, os.O_RDWR)
+    for standard in (0, 1, 2):          # what the firmware prints is never read
+        os.dup2(null, standard)
+    os.close(null)
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)       # a file too big fails with an error instead
+    signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the grader's
+    if not channel.send(wire.HELLO):
+        return
+    message = channel.receive()
+    if message is None or message[:1] != wire.SOURCE:
+        return
+    (length,) = wire.NAME_LENGTH.unpack_from(message, 1)
+    name = message[3:3 + length].decode()
+    work = Path(settings.get("work", WORK))
+    path = work / name
+    path.write_bytes(message[3 + length:])
+    os.chdir(work)
+    _limit(settings)
+    mcu = RemoteMCU(channel)
+    RUNNING_MCU.set(mcu)
+    try:
+        module = load_firmware(path)
+    except FirmwareError as error:
+        mcu.report(wire.LOAD_FAILED, str(error))
+        return
+    identity = {name: value for name in ("MESSAGE_ID1", "RTR_ID")
+                if type(value := getattr(module, name, None)) is int and -wire.IDENTITY_LIMIT < value < wire.IDENTITY_LIMIT}
+    mcu.report(wire.LOADED, json.dumps(identity))
+    if channel.receive() != wire.GO:
+        return
+    try:
+        module.main()
+    except MemoryError:
+        mcu.report(wire.OUT_OF_MEMORY)
+    except SystemExit:
+        mcu.report(wire.EXITED)
+    except BaseException as error:      # KeyboardInterrupt too: it stops this firmware only
+        mcu.report(wire.RAISED, crash_message(error, str(path)))
+    else:
+        mcu.report(wire.RETURNED)
+
+
+firmware_entry(main)                # it runs the firmware's main(), as a board's process does
+
+
+if __name__ == "__main__":
+    main(json.loads(sys.argv[1]))

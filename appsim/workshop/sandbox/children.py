@@ -1,0 +1,202 @@
+"""The sandboxed processes of one grading worker: each starts booting at once, is ended by a watchdog when its time is
+up, and the next one is always booting. Light on imports, so a worker's first child boots while the worker loads.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from appsim.errors import SandboxUnavailable
+from appsim.workshop.sandbox import protocol as wire
+from appsim.workshop.sandbox.isolation import Isolation, import_path, seccomp_program
+from appsim.workshop.sandbox.protocol import Channel, ProtocolError
+
+BOOT = ("import json, sys; settings = json.loads(sys.argv[1]); sys.path[:0] = settings['path']; "
+        "from appsim.workshop.sandbox.child import main; main(settings)")
+BOOT_S = 30.0                       # a child that has not said hello by then is broken, not slow
+BOOT_ATTEMPTS = 3
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What one exercise's firmware may use: wall time in all (loading and running), wall time without a word to
+    the board, memory, and the size of a file it writes."""
+
+    time_s: float = 60.0
+    stall_s: float = 10.0
+    memory_mb: int = 256
+    file_mb: int = 16
+
+    def __post_init__(self) -> None:
+        if not (self.time_s > 0 and self.stall_s > 0 and self.memory_mb > 0 and self.file_mb > 0):
+            raise ValueError(f"sandbox limits are positive numbers; got {self}")
+
+
+DEFAULT_LIMITS = Limits()
+
+
+# ====================================================================== one sandboxed process
+
+class Child:
+    """One sandboxed Python process, booting or ready for its firmware, and the grader's ends of its two pipes.
+
+    `expires_at` (time.monotonic()) is when the watchdog ends it; `expired` says it did.
+    """
+
+    def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog):
+        from_grader, to_child = os.pipe()
+        from_child, to_grader = os.pipe()
+        self.channel = Channel(from_child, to_child, wire.MAX_FROM_CHILD)
+        self._scratch = None if isolation is not None else tempfile.mkdtemp(prefix="appsim-firmware-")
+        settings: dict[str, Any] = {"read_fd": from_grader, "write_fd": to_grader, "path": import_path(),
+                                    "memory_mb": limits.memory_mb, "file_mb": limits.file_mb,
+                                    "cpu_s": int(limits.time_s) + 2}
+        if self._scratch is not None:
+            settings["work"] = self._scratch
+        argv = [sys.executable, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
+        theirs = [from_grader, to_grader]
+        if isolation is not None:
+            read, write = os.pipe()
+            os.write(write, seccomp_program())
+            os.close(write)
+            theirs.append(read)
+            argv = isolation.command(argv, read)
+        self.expires_at = time.monotonic() + BOOT_S
+        self.expired = False
+        try:
+            self.process = subprocess.Popen(argv, pass_fds=theirs, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                            stderr=subprocess.PIPE, start_new_session=True)
+        except BaseException:
+            self.channel.close()
+            raise
+        finally:
+            for fd in theirs:
+                os.close(fd)
+        self._watchdog = watchdog
+        watchdog.watch(self)
+
+    def ready(self, deadline: float) -> bool:
+        """Whether it booted and said hello by `deadline`."""
+        self.expires_at = min(deadline, self.expires_at)
+        try:
+            return self.channel.receive() == wire.HELLO
+        except ProtocolError:
+            return False
+
+    def why_not(self) -> str:
+        """What a child that never said hello printed (bubblewrap's or Python's own error), for the grader's log."""
+        self.kill()
+        assert self.process.stderr is not None
+        text = self.process.stderr.read(4000).decode("utf-8", "replace").strip()
+        return text or f"it ended with status {self.process.returncode}"
+
+    def status(self, timeout: float = 5.0) -> int | None:
+        """How it ended (a signal as a negative number, as subprocess gives it); None if it is still running."""
+        try:
+            code = self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            return None
+        return -(code - 128) if code > 128 else code      # bubblewrap reports a signal as 128 + signal
+
+    def expire(self) -> None:
+        """The watchdog's doing: its time is up."""
+        self.expired = True
+        self.process.kill()
+
+    def kill(self) -> None:
+        """End it (and, through its namespace, anything it left), and free what the grader holds of it."""
+        self._watchdog.forget(self)
+        if self.process.poll() is None:
+            self.process.kill()
+        try:
+            self.process.wait(10)
+        except subprocess.TimeoutExpired:
+            pass
+        self.channel.close()
+        if self._scratch is not None:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+            self._scratch = None
+
+
+class Watchdog:
+    """Ends each child whose `expires_at` has passed, which ends the grader's wait on it: one thread per grader."""
+
+    TICK_S = 0.02
+
+    def __init__(self) -> None:
+        self._children: set[Child] = set()
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+
+    def watch(self, child: Child) -> None:
+        with self._lock:
+            self._children.add(child)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._run, name="appsim-sandbox-watchdog", daemon=True)
+                self._thread.start()
+
+    def forget(self, child: Child) -> None:
+        with self._lock:
+            self._children.discard(child)
+
+    def _run(self) -> None:
+        while True:
+            time.sleep(self.TICK_S)
+            now = time.monotonic()
+            with self._lock:
+                for child in [c for c in self._children if c.expires_at <= now]:
+                    self._children.discard(child)
+                    child.expire()
+
+
+class Sandbox:
+    """One grading worker's supply of sandboxed children: each exercise gets a fresh one, the next already booting.
+
+    `isolation` None runs children as plain processes (only for a class whose code is trusted: `--trusted`).
+    """
+
+    def __init__(self, isolation: Isolation | None, limits: Limits = DEFAULT_LIMITS):
+        self.isolation = isolation
+        self.limits = limits
+        self.watchdog = Watchdog()
+        self._spare: Child | None = None
+
+    def take(self, deadline: float) -> Child:
+        """A child that has booted; the next one starts booting meanwhile. SandboxUnavailable if none will boot."""
+        problem = ""
+        for _ in range(BOOT_ATTEMPTS):
+            child = self._spare or self._child()
+            self._spare = self._child()
+            if child.ready(deadline):
+                return child
+            problem = child.why_not()
+            if time.monotonic() >= deadline:
+                break
+        raise SandboxUnavailable(f"the grader could not start a sandbox for this firmware: {problem}")
+
+    def warm(self) -> None:
+        """Start the first child booting now (a worker does this before it loads the simulator)."""
+        if self._spare is None:
+            self._spare = self._child()
+
+    def _child(self) -> Child:
+        return Child(self.isolation, self.limits, self.watchdog)
+
+    def close(self) -> None:
+        if self._spare is not None:
+            self._spare.kill()
+            self._spare = None
+
+    def __enter__(self) -> Sandbox:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

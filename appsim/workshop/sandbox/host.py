@@ -1,0 +1,223 @@
+"""The grader's side of a sandboxed firmware: a child loads the file, the board runs its main(), each access crosses.
+
+Every wait has a deadline (the exercise's wall-time budget, and the time the firmware may go without a word); every
+message is decoded strictly; whatever the child does, it ends as a `Fault` of its own exercise and nothing else.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+from appsim.chip.mcu import PIC18F8680
+from appsim.chip.sfr import current_mcu
+from appsim.errors import SandboxUnavailable
+from appsim.firmware.glcd import NO_GLCD
+from appsim.workshop.checks.trial import Fatal, Firmware
+from appsim.workshop.faults import EXITED, Fault, FirmwareFault, stalled
+from appsim.workshop.sandbox import protocol as wire
+from appsim.workshop.sandbox.children import DEFAULT_LIMITS, Child, Limits, Sandbox
+from appsim.workshop.sandbox.protocol import Access, ProtocolError
+
+__all__ = ["DEFAULT_LIMITS", "Limits", "Sandbox", "SandboxedFirmware"]
+
+
+# ====================================================================== a firmware file, run in a child
+
+class SandboxedFirmware:
+    """A firmware file's source, for `check()`: `load()` starts a sandboxed child that loads it, and the board runs
+    its main() there. The first fault ends the run; `fault` keeps it. Call `close()` when the check is done."""
+
+    def __init__(self, sandbox: Sandbox, name: str, source: bytes, limits: Limits = DEFAULT_LIMITS):
+        self.sandbox = sandbox
+        self.name = name
+        self.source = source
+        self.limits = limits
+        self.deadline = time.monotonic() + limits.time_s
+        self.fault: Fault | None = None
+        self.round_trips = 0
+        self._child: Child | None = None
+        self._error: Exception | None = None
+
+    # -------------------------------------------------------------- loading (checks.trial.Loadable)
+    def load(self) -> Firmware:
+        try:
+            child = self._child = self.sandbox.take(self.deadline)
+        except SandboxUnavailable as error:
+            raise Fatal(self._ends(Fault("grader", str(error)))) from None
+        child.channel.send(wire.source_message(self.name, self.source))
+        message = self._receive()
+        if isinstance(message, Fault):
+            raise Fatal(self._ends(message))
+        kind, data = message[:1], message[1:]
+        try:
+            if kind == wire.LOADED:
+                return Firmware(self._main, None, self.name, wire.decode_identity(data))
+            if kind == wire.LOAD_FAILED:
+                raise Fatal(self._ends(Fault("load", f"the firmware does not load: {wire.decode_text(data)}")))
+            ended = self._ending(kind, data)
+            raise ProtocolError(f"a message of kind {kind!r} while loading") if ended is None else Fatal(self._ends(ended))
+        except ProtocolError as error:
+            raise Fatal(self._ends(_protocol(error))) from None
+
+    def close(self) -> None:
+        """End the child, wherever it is (a check that finished while the firmware waited for an answer)."""
+        if self._child is not None:
+            self._child.kill()
+            self._child = None
+
+    # -------------------------------------------------------------- running: the board's firmware process
+    def _main(self) -> None:
+        mcu = current_mcu()
+        assert isinstance(mcu, PIC18F8680)
+        process = mcu.process
+        assert process is not None and self._child is not None
+        process.watched = False         # the sandbox's own limits (stall_s, time_s) govern it, not the watchdog
+        try:
+            self._child.channel.send(wire.GO)
+            fault = self._serve(mcu)
+        except Exception as error:      # a fault of the grader's own, never the student's
+            fault = Fault("grader", f"the grader failed while running this firmware: {type(error).__name__}: {error}")
+        finally:
+            self.close()
+        raise FirmwareFault(self._ends(fault))
+
+    def _serve(self, mcu: PIC18F8680) -> Fault:
+        """Perform the child's accesses on `mcu` until it ends; how it ended.
+
+        The hot path, a lone register read (most messages), is done inline: one read and one write of the pipes.
+        """
+        child = self._child
+        assert child is not None
+        channel = child.channel
+        read_fd, write_fd, monotonic = channel.read_fd, channel.write_fd, time.monotonic
+        stall_s, deadline = self.limits.stall_s, self.deadline
+        while True:
+            if not channel.buffered():
+                now = monotonic()
+                child.expires_at = min(deadline, now + stall_s)
+                chunk = os.read(read_fd, 1 << 16)
+                if len(chunk) == wire.LONE_READ_SIZE and chunk.startswith(wire.LONE_READ) and self._error is None:
+                    _, address, site = wire.READ_ITEM.unpack_from(chunk, len(wire.LONE_READ) - 1)
+                    if address in wire.ADDRESSES:
+                        try:
+                            value = mcu.read(address, site)
+                        except Exception as error:       # the firmware sees it raised, as on a local board
+                            self._error = error
+                        else:
+                            self.round_trips += 1
+                            try:
+                                os.write(write_fd, wire.VALUE_REPLY + bytes((value & 0xFF,)))
+                            except OSError:
+                                return self._gone()
+                            continue
+                channel.push(chunk)
+            message = self._receive()
+            if isinstance(message, Fault):
+                return message
+            if message[:1] != wire.BATCH:
+                try:
+                    return self._ending(message[:1], message[1:]) or _protocol(
+                        ProtocolError(f"a message of kind {message[:1]!r} while running"))
+                except ProtocolError as error:
+                    return _protocol(error)
+            try:
+                accesses, codes = wire.decode_batch(message)
+            except ProtocolError as error:
+                return _protocol(error)
+            reply = self._perform(mcu, accesses, codes)
+            if reply is not None:
+                self.round_trips += 1
+                if not channel.send(reply):
+                    return self._gone()
+
+    def _perform(self, mcu: PIC18F8680, accesses: list[Access], codes: bytes) -> bytes | None:
+        """Do a batch on the board; the answer when it ends with an access that waits for one. An access the board
+        refuses (an error from a peripheral) skips the rest of the batch and is raised in the child at its answer."""
+        value = 0
+        for op, first, second in accesses:
+            if self._error is None:
+                try:
+                    if op is wire.READ:
+                        value = mcu.read(first, second)
+                    elif op is wire.WRITE:
+                        mcu.write(first, second)
+                    elif op is wire.SPEND:
+                        mcu.spend_cycles(first)
+                    else:
+                        _display(mcu, op, first, second, codes)
+                except Exception as error:       # the firmware sees it raised, as on a local board
+                    self._error = error
+            if op is wire.READ or op[:1] == wire.DISPLAY:
+                if self._error is not None:
+                    reply, self._error = wire.error_message(self._error), None
+                    return reply
+                return wire.VALUE + bytes((value & 0xFF,)) if op is wire.READ else wire.DONE
+        return None
+
+    # -------------------------------------------------------------- endings
+    def _receive(self) -> bytes | Fault:
+        """The child's next message, or the fault that came instead (time, stall, its end, a broken message)."""
+        child = self._child
+        assert child is not None
+        child.expires_at = min(self.deadline, time.monotonic() + self.limits.stall_s)
+        try:
+            message = child.channel.receive()
+        except ProtocolError as error:
+            return _protocol(error)
+        if message is not None:
+            return message
+        if child.expired:
+            return self._time() if time.monotonic() >= self.deadline else stalled(self.limits.stall_s)
+        return self._gone()
+
+    def _ending(self, kind: bytes, data: bytes) -> Fault | None:
+        """The fault a child's closing message says (ProtocolError if it is not one), or None if it is none."""
+        if kind == wire.RETURNED:
+            return Fault("returned", "main() returned: firmware has nowhere to return to, so main() must loop forever "
+                                     "(`while True:` around the work, as `while(1)` in EX1.C's main()).")
+        if kind == wire.RAISED:
+            return Fault("exception", wire.decode_text(data))
+        if kind == wire.OUT_OF_MEMORY:
+            return Fault("memory", f"memory limit: the firmware needed more than {self.limits.memory_mb} MB")
+        if kind == wire.EXITED:
+            return EXITED
+        return None
+
+    def _gone(self) -> Fault:
+        """The child's end closed without saying why: it exited, or a limit stopped it."""
+        assert self._child is not None
+        status = self._child.status()
+        if status in (-signal.SIGXCPU, -signal.SIGKILL):
+            return Fault("time", f"CPU time limit: the firmware computed for more than {self.limits.time_s:g} s")
+        if status == -signal.SIGSYS:
+            return Fault("forbidden", "the firmware made a system call of another ABI (32-bit or x32), which the "
+                                      "sandbox stops at once")
+        return EXITED
+
+    def _time(self) -> Fault:
+        return Fault("time", f"time limit: the exercise took more than {self.limits.time_s:g} s of wall time, loading "
+                             "and running; firmware this slow would not keep up with the bus")
+
+    def _ends(self, fault: Fault) -> Fault:
+        self.close()
+        if self.fault is None:
+            self.fault = fault
+        return self.fault
+
+
+def _protocol(error: ProtocolError) -> Fault:
+    return Fault("protocol", f"the firmware's process broke the grader's protocol ({error}): the firmware library in "
+                             "its own process was tampered with; the run ends here")
+
+
+def _display(mcu: PIC18F8680, op: bytes, first: int, second: int, codes: bytes) -> None:
+    display = mcu.glcd
+    if display is None:
+        raise RuntimeError(NO_GLCD)
+    if op == wire.DISPLAY_INITIAL:
+        display.initial()
+    elif op == wire.DISPLAY_CURSOR:
+        display.set_cursor(first, second)
+    else:
+        display.write(list(codes))

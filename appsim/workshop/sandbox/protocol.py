@@ -1,0 +1,206 @@
+"""The wire between the grader and a sandboxed firmware: length-prefixed messages on two pipes, decoded strictly.
+
+The grader trusts nothing it reads here: `decode` turns a child's message into plain values or raises ProtocolError.
+"""
+from __future__ import annotations
+
+import json
+import os
+import struct
+
+LENGTH = struct.Struct("<I")
+MAX_FROM_CHILD = 64 << 10           # a batch is flushed at BATCH_BYTES; texts are cut at MAX_TEXT
+MAX_FROM_GRADER = 1 << 20           # the firmware's source, at most MAX_SOURCE
+MAX_SOURCE = 512 << 10
+BATCH_BYTES = 4096                  # writes and spends wait at most this long for the next read
+MAX_TEXT = 8000                     # bytes of a message the child words itself (a traceback, a load error)
+MAX_IDENTITY = 512
+
+# Child to grader. Alone: HELLO (booted, waiting for its firmware), LOADED + JSON identity, LOAD_FAILED + text,
+# RETURNED, RAISED + text, OUT_OF_MEMORY, EXITED. Or a BATCH of accesses: WRITE address:u16
+# value:u8 and SPEND cycles:u64 items, ended by at most one item that waits for its answer, READ address:u16
+# site:i64 or DISPLAY op:u8 (INITIAL; CURSOR line:i64 column:i64; TEXT count:u16 codes:u8*count).
+HELLO, LOADED, LOAD_FAILED, RETURNED, RAISED, OUT_OF_MEMORY, EXITED, BATCH = (
+    b"H", b"L", b"F", b"E", b"X", b"M", b"Q", b"B")
+WRITE, SPEND, READ, DISPLAY = b"W", b"S", b"R", b"D"
+INITIAL, CURSOR, TEXT = 0, 1, 2
+# Grader to child: SOURCE name-length:u16 name source, GO, VALUE value:u8, DONE (display), ERROR + JSON [class, text].
+SOURCE, GO, VALUE, DONE, ERROR = b"S", b"G", b"V", b"K", b"Z"
+
+WRITE_ITEM = struct.Struct("<cHB")
+SPEND_ITEM = struct.Struct("<cQ")
+READ_ITEM = struct.Struct("<cHq")
+CURSOR_ITEM = struct.Struct("<cBqq")
+LONE_READ = LENGTH.pack(1 + 11) + BATCH + READ     # how a batch of one READ starts (READ_ITEM is 11 bytes)
+LONE_READ_SIZE = len(LONE_READ) - 1 + 11
+VALUE_REPLY = LENGTH.pack(2) + VALUE
+TEXT_HEAD = struct.Struct("<cBH")
+NAME_LENGTH = struct.Struct("<H")
+ADDRESSES = range(0x1000)           # the PIC18F8680's data memory: 0x000..0xFFF
+IDENTITY_LIMIT = 1 << 64            # MESSAGE_ID1 / RTR_ID values beyond this are not identifiers of anything
+
+
+class ProtocolError(Exception):
+    """A child's message that is not of this protocol (the grader's own words say so; the bytes are not shown)."""
+
+
+# ====================================================================== framing, with a deadline on every wait
+
+class Channel:
+    """One end of a pair of pipes: whole messages out, whole messages in. Reads block: the grader puts a deadline on
+    a child by ending it (see host.Watchdog), which closes the pipe and so ends the wait."""
+
+    def __init__(self, read_fd: int, write_fd: int, limit: int):
+        self.read_fd = read_fd
+        self.write_fd = write_fd
+        self.limit = limit
+        self._buffer = bytearray()
+
+    def send(self, message: bytes) -> bool:
+        """False if the other end has gone."""
+        data = LENGTH.pack(len(message)) + message
+        try:
+            written = os.write(self.write_fd, data)
+            while written < len(data):
+                data = data[written:]
+                written = os.write(self.write_fd, data)
+        except (BrokenPipeError, ConnectionResetError):
+            return False
+        return True
+
+    def receive(self) -> bytes | None:
+        """The next message; None once the other end closed. A length of 0 or over the limit is a ProtocolError."""
+        buffer = self._buffer
+        while True:
+            if len(buffer) >= 4:
+                (length,) = LENGTH.unpack_from(buffer)
+                if not 0 < length <= self.limit:
+                    raise ProtocolError(f"a message of {length} bytes (at most {self.limit} are allowed)")
+                if len(buffer) >= 4 + length:
+                    message = bytes(buffer[4:4 + length])
+                    del buffer[:4 + length]
+                    return message
+            chunk = os.read(self.read_fd, 1 << 16)
+            if not chunk:
+                return None
+            if not buffer and len(chunk) > 4 and len(chunk) == 4 + LENGTH.unpack_from(chunk)[0]:
+                if len(chunk) - 4 > self.limit:         # the common case: one whole message in one read
+                    raise ProtocolError(f"a message of {len(chunk) - 4} bytes (at most {self.limit} are allowed)")
+                return chunk[4:]
+            buffer += chunk
+
+    def buffered(self) -> bool:
+        """Whether bytes already read wait in the buffer."""
+        return bool(self._buffer)
+
+    def push(self, data: bytes) -> None:
+        """Bytes already read from the pipe, to be taken before what comes next."""
+        self._buffer[:0] = data
+
+    def close(self) -> None:
+        for fd in (self.read_fd, self.write_fd):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+
+# ====================================================================== what a child may say
+
+Access = tuple[bytes, int, int]      # (op, first argument, second argument), decoded
+_READ_ALONE = 1 + READ_ITEM.size     # the most common message by far: a batch of one READ
+# Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (count; the codes apart).
+DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT = b"Di", b"Dc", b"Dt"
+
+
+def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
+    """A BATCH message's items, and the codes of a display TEXT that ends it. Only the last item may wait for an
+    answer (a READ or a display item). ProtocolError if anything is off."""
+    if len(message) == _READ_ALONE and message[1:2] == READ:
+        _, address, site = READ_ITEM.unpack_from(message, 1)
+        return [(READ, _address(address), site)], b""
+    items: list[Access] = []
+    position, end = 1, len(message)
+    try:
+        while position < end:
+            op = message[position:position + 1]
+            if op == WRITE:
+                _, address, value = WRITE_ITEM.unpack_from(message, position)
+                items.append((WRITE, _address(address), value))
+                position += WRITE_ITEM.size
+            elif op == SPEND:
+                _, cycles = SPEND_ITEM.unpack_from(message, position)
+                items.append((SPEND, cycles, 0))
+                position += SPEND_ITEM.size
+            elif op == READ:
+                _, address, site = READ_ITEM.unpack_from(message, position)
+                items.append((READ, _address(address), site))
+                position += READ_ITEM.size
+                break
+            elif op == DISPLAY:
+                item, codes = _display(message, position)
+                return [*items, item], codes
+            else:
+                raise ProtocolError(f"no access of kind {op!r}")
+    except struct.error:
+        raise ProtocolError("an access cut short") from None
+    if position != end:
+        raise ProtocolError("an access after one that waits for its answer")
+    return items, b""
+
+
+def _display(message: bytes, position: int) -> tuple[Access, bytes]:
+    """A display item, which ends its batch, and the codes of a TEXT."""
+    kind = message[position + 1] if position + 1 < len(message) else -1
+    rest = len(message) - position
+    if kind == INITIAL and rest == 2:
+        return (DISPLAY_INITIAL, 0, 0), b""
+    if kind == CURSOR and rest == CURSOR_ITEM.size:
+        _, _, line, column = CURSOR_ITEM.unpack_from(message, position)
+        return (DISPLAY_CURSOR, line, column), b""
+    if kind == TEXT and rest >= TEXT_HEAD.size:
+        _, _, count = TEXT_HEAD.unpack_from(message, position)
+        if rest - TEXT_HEAD.size == count:
+            return (DISPLAY_TEXT, count, 0), message[position + TEXT_HEAD.size:]
+    raise ProtocolError("a display operation that is not one")
+
+
+def _address(address: int) -> int:
+    if address not in ADDRESSES:
+        raise ProtocolError(f"address 0x{address:X} is outside the PIC18F8680's data memory")
+    return address
+
+
+def decode_identity(data: bytes) -> dict[str, int]:
+    """The LOADED message's identity: a JSON object of at most MESSAGE_ID1 and RTR_ID, small integers only."""
+    if len(data) > MAX_IDENTITY:
+        raise ProtocolError("an identity too long to be one")
+    try:
+        identity = json.loads(data)
+    except (ValueError, RecursionError):
+        raise ProtocolError("an identity that is not JSON") from None
+    if not isinstance(identity, dict) or not set(identity) <= {"MESSAGE_ID1", "RTR_ID"}:
+        raise ProtocolError("an identity with other names than MESSAGE_ID1 and RTR_ID")
+    for value in identity.values():
+        if type(value) is not int or not -IDENTITY_LIMIT < value < IDENTITY_LIMIT:
+            raise ProtocolError("an identity whose values are not integers")
+    return identity
+
+
+def decode_text(data: bytes) -> str:
+    """A text the child worded (a traceback, a load error): at most MAX_TEXT bytes, printable, as the grader quotes it."""
+    if len(data) > MAX_TEXT:
+        raise ProtocolError(f"a text of {len(data)} bytes (at most {MAX_TEXT})")
+    text = data.decode("utf-8", "replace")
+    return "".join(c if c.isprintable() or c in "\n\t" else "\N{REPLACEMENT CHARACTER}" for c in text)
+
+
+# ====================================================================== what the grader says
+
+def source_message(name: str, source: bytes) -> bytes:
+    encoded = name.encode()
+    return SOURCE + NAME_LENGTH.pack(len(encoded)) + encoded + source
+
+
+def error_message(error: Exception) -> bytes:
+    return ERROR + json.dumps([type(error).__name__, str(error)]).encode()
