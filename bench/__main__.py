@@ -23,12 +23,13 @@ class Config:
     linked_s: float             # wall seconds of the Ex2 board linked in real time
     round_trips: int
     class_size: int             # submissions graded by `appsim grade --jobs 2`
+    isolation_class: int        # submissions graded sandboxed and --trusted, for the isolation's cost
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
-              linked_s=1.5, round_trips=10, class_size=30)
+              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
-               linked_s=0.2, round_trips=2, class_size=2)
+               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1)
 
 
 def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
@@ -93,16 +94,23 @@ def _busy_wait(config: Config) -> list[Figure]:
 
 
 def _grading(config: Config) -> list[Figure]:
-    one = "grade one submission (solutions of Ex1..Ex6)"
-    first = Figure(one, "wall s", repeat(config.runs, grading.one_submission_s), target=5, aim=1,
-                   lower_is_better=True, note="appsim.workshop.checks.check, in process")
-    sandboxed = Figure("appsim grade: one submission (Ex1..Ex6), sandboxed", "wall s",
-                       repeat(config.runs, lambda: grading.appsim_grade_s(1, jobs=1)), target=5, aim=1,
-                       lower_is_better=True, note="the whole command, Python start included")
+    first = Figure("check one submission (solutions of Ex1..Ex6 and Demo1), in process", "wall s",
+                   repeat(config.runs, grading.one_submission_s), note="appsim.workshop.checks.check")
+    alone = repeat(config.runs, lambda: grading.appsim_grade_s(1, jobs=2))
+    sandboxed = Figure("appsim grade: one full submission (Ex1..Ex6, Demo1), sandboxed", "wall s", alone,
+                       target=1.5, aim=1, lower_is_better=True,
+                       note="the whole command, Python's start included, --jobs 2")
+    isolated = repeat(config.runs, lambda: grading.appsim_grade_s(config.isolation_class, jobs=2))
+    trusted = repeat(config.runs, lambda: grading.appsim_grade_s(config.isolation_class, jobs=2, trusted=True))
+    exercises = 7 * config.isolation_class
+    cost = Figure("isolation's cost per exercise (sandboxed minus --trusted)", "wall s",
+                  tuple((i - t) / exercises for i, t in zip(isolated, trusted)), target=0.1, lower_is_better=True,
+                  note=f"a class of {config.isolation_class} graded both ways, {exercises} exercises")
     room = Figure(f"appsim grade: a class of {config.class_size} with --jobs 2", "wall s",
                   repeat(config.runs, lambda: grading.appsim_grade_s(config.class_size, jobs=2)),
-                  note="the whole command")
-    return [first, sandboxed, room]
+                  target=60 if config.class_size == 60 else None, lower_is_better=True,
+                  note="full submissions (Ex1..Ex6, Demo1), the whole command")
+    return [first, sandboxed, cost, room]
 
 
 def _linked(config: Config) -> list[Figure]:

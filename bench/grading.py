@@ -1,5 +1,5 @@
-"""Grading throughput: wall time to grade the solutions of Ex1..Ex6 with `appsim.workshop.checks.check` in process,
-and with `appsim grade` (each submission's firmware sandboxed in its own process): one submission, a class.
+"""Grading throughput: the solutions of Ex1..Ex6 and Demo1 checked in process, and graded by `appsim grade` (each
+exercise's firmware in its own sandbox), the whole command as an instructor runs it: one submission, a class.
 """
 from __future__ import annotations
 
@@ -10,14 +10,14 @@ import tempfile
 import time
 from pathlib import Path
 
-from appsim.workshop.course import CLASSROOM_EXERCISES as EXERCISES
-from appsim.workshop.course import SOLUTIONS
+from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS
+
 
 def one_submission_s(seed: int = 1) -> float:
-    """Wall seconds to check the solutions of Ex1..Ex6 as one student's submission (every check must pass)."""
+    """Wall seconds to check the solutions of Ex1..Ex6 and Demo1 in process (every check must pass)."""
     from appsim.workshop.checks import check
     started = time.perf_counter()
-    verdicts = [check(f"ex{n}", SOLUTIONS / f"ex{n}.py", seed=seed) for n in EXERCISES]
+    verdicts = [check(exercise, SOLUTIONS / name, seed=seed) for exercise, name in EXERCISE_FILES.items()]
     wall = time.perf_counter() - started
     failed = [v for v in verdicts if not v.passed]
     if failed:
@@ -25,17 +25,22 @@ def one_submission_s(seed: int = 1) -> float:
     return wall
 
 
-def appsim_grade_s(submissions: int, jobs: int, seed: int = 1) -> float:
-    """Wall seconds for `appsim grade CLASS --jobs N` on `submissions` copies of the solutions (Ex1..Ex6),
-    the whole command as an instructor runs it, Python's start included."""
+def appsim_grade_s(submissions: int, jobs: int, seed: int = 1, *, trusted: bool = False) -> float:
+    """Wall seconds for `appsim grade CLASS --jobs N` on `submissions` copies of the solutions (Ex1..Ex6, Demo1),
+    the whole command, Python's start included; `trusted` runs it without isolation (for the isolation's cost)."""
     with tempfile.TemporaryDirectory(prefix="appsim-bench-") as scratch:
         room = Path(scratch) / "class"
         for k in range(submissions):
             student = room / f"student{k:02d}"
             student.mkdir(parents=True)
-            for n in EXERCISES:
-                shutil.copy(SOLUTIONS / f"ex{n}.py", student)
+            for name in EXERCISE_FILES.values():
+                shutil.copy(SOLUTIONS / name, student)
+        command = [sys.executable, "-m", "appsim", "grade", str(room), "--jobs", str(jobs), "--seed", str(seed),
+                   "--json", str(Path(scratch) / "grades.jsonl"), *(["--trusted"] if trusted else [])]
         started = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "appsim", "grade", str(room), "--jobs", str(jobs), "--seed", str(seed),
-                        "--json", str(Path(scratch) / "grades.jsonl")], check=True, capture_output=True)
-        return time.perf_counter() - started
+        done = subprocess.run(command, check=True, capture_output=True, text=True)
+        wall = time.perf_counter() - started
+        full = f"{35 * submissions}/{35 * submissions} points"
+        if full not in done.stdout:
+            raise RuntimeError(f"the solutions did not get full marks:\n{done.stdout}")
+        return wall

@@ -20,7 +20,8 @@ from appsim.bus.wire import Bus
 from appsim.firmware.loader import FirmwareError, constants, load_firmware
 from appsim.chip.mcu import PIC18F8680
 from appsim.sim import PS_PER_SECOND
-from appsim.workshop.course import CLASSROOM_EXERCISES, MASTER_FIRMWARE, SOLUTIONS, STATIONS, station_ids
+from appsim.workshop import course
+from appsim.workshop.course import CLASSROOM_EXERCISES, STATIONS, station_ids
 
 DEFAULT_POTENTIOMETERS = (100, 250, 400, 550, 700, 850)
 
@@ -60,7 +61,7 @@ class Classroom:
 
     def __init__(self, bus: Bus, exercise: int, *, stations: int = STATIONS,
                  potentiometers: Sequence[int] | None = None, master_potentiometer: int = 512,
-                 firmware_dir: str | Path = SOLUTIONS, seed: int | None = None, monitor: bool = True):
+                 firmware_dir: str | Path | None = None, seed: int | None = None, monitor: bool = True):
         if exercise not in CLASSROOM_EXERCISES:
             raise ValueError(f"exercise {exercise!r} does not exist: the workshop has EX1.C .. EX6.C (1..6)")
         if not isinstance(stations, int) or not 1 <= stations <= STATIONS:
@@ -74,9 +75,9 @@ class Classroom:
                              f"{len(potentiometers)} values")
         self.bus = bus
         self.exercise = exercise
-        self.firmware = Path(firmware_dir) / f"ex{exercise}.py"
+        self.firmware = Path(course.SOLUTIONS if firmware_dir is None else firmware_dir) / f"ex{exercise}.py"
         self.master = APP023(bus, "master", potentiometer=master_potentiometer)
-        self.master.run(load_firmware(MASTER_FIRMWARE))
+        self.master.run(load_firmware(course.MASTER_FIRMWARE))
         self.stations: dict[int, APP023] = {}
         names = constants(self.firmware)
         for k, potentiometer in enumerate(potentiometers, start=1):

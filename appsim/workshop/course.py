@@ -39,20 +39,25 @@ def exercise_name(exercise: object) -> str:
                      "demo1, the CAN monitor")
 
 
-def _package_folder(package: str) -> Path:
-    return Path(str(resources.files(package)))
+# STARTERS, SOLUTIONS (folders) and MASTER_FIRMWARE (a file), found when first asked for: importing this module
+# needs neither (a firmware in the grader's sandbox may import the kit, where the solutions are not to be found).
+_FILES = {"STARTERS": ("appsim.workshop.exercises", ""), "SOLUTIONS": ("appsim.workshop.solutions", ""),
+          "MASTER_FIRMWARE": ("appsim.workshop", "master.py")}
 
 
-STARTERS = _package_folder("appsim.workshop.exercises")
-SOLUTIONS = _package_folder("appsim.workshop.solutions")
-MASTER_FIRMWARE = _package_folder("appsim.workshop") / "master.py"
+def __getattr__(name: str) -> Path:
+    if name not in _FILES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    package, file = _FILES[name]
+    path = globals()[name] = Path(str(resources.files(package))) / file
+    return path
 
 
 def starter(exercise: object) -> Path:
     """The starter file of an exercise, as students get it (exercises/ex3.py)."""
-    return STARTERS / EXERCISE_FILES[exercise_name(exercise)]
+    return __getattr__("STARTERS") / EXERCISE_FILES[exercise_name(exercise)]
 
 
 def solution(exercise: object) -> Path:
     """The reference solution of an exercise (solutions/ex3.py), which the classroom's stations run."""
-    return SOLUTIONS / EXERCISE_FILES[exercise_name(exercise)]
+    return __getattr__("SOLUTIONS") / EXERCISE_FILES[exercise_name(exercise)]

@@ -76,7 +76,7 @@ def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable)
             module = load_firmware(path)
         except FirmwareError as error:
             raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-        return Firmware(module.main, str(path), path.name, identity_of(module))
+        return Firmware(module.main, str(path), str(path), identity_of(module))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):
             raise Fatal(Fault("load", f"{firmware.__name__} has no main(): a firmware defines `def main():` that "
@@ -107,7 +107,7 @@ def placement(exercise: str, firmware: Firmware, message_id: int | None) -> tupl
         if not 0 <= own <= STANDARD_ID_MAX:
             raise Fatal(Fault("station", f"MESSAGE_ID1 = {_shown(own)} is not a standard identifier: CAN's "
                                          f"11-bit identifiers are 0x000 .. 0x{STANDARD_ID_MAX:03X}."))
-        return 1, own
+        return (STATION_IDS.index(own) + 1 if own in STATION_IDS else 1), own
     rtr_id = firmware.identity.get("RTR_ID")
     if exercise == "ex5" and rtr_id is not None:
         station = _station_by(rtr_id, "RTR_ID", RTR_IDS, "0x81 .. 0x86 (0x100 -> 0x81 ... 0x150 -> 0x86)")

@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from appsim.errors import GradeError
-from appsim.workshop.course import EXERCISES, SOLUTIONS
+from appsim.workshop import course
+from appsim.workshop.course import EXERCISES
 
 Record = dict[str, Any]
 RESULTS_SUFFIX = ".grades.jsonl"
@@ -35,7 +36,7 @@ def kit_version() -> str:
         version = "0"
     content = hashlib.sha256()
     package = Path(appsim.__file__).resolve().parent
-    for path in sorted({*package.rglob("*.py"), *SOLUTIONS.glob("*.py")}):
+    for path in sorted({*package.rglob("*.py"), *course.SOLUTIONS.glob("*.py")}):
         content.update(path.relative_to(path.parents[1]).as_posix().encode() + b"\0" + path.read_bytes())
     return f"{version}+{content.hexdigest()[:12]}"
 

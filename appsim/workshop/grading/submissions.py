@@ -100,7 +100,7 @@ class _Entry:
 
 def _from_folder(folder: Path, name: str) -> list[Submission]:
     entries = _folder_entries(folder)
-    if any(_exercise_of(entry.name) for entry in entries):
+    if any(_may_hold_exercise(entry.name) for entry in entries):
         return [_submission(name, entries, str(folder))]
     found = []
     for entry in sorted(os.scandir(folder), key=lambda e: e.name):
@@ -173,7 +173,8 @@ def _from_zip(data: bytes, name: str, origin: str, *, nested: bool = False) -> l
             NotImplementedError) as error:
         return [_refused(name, origin, Fault("unreadable", f"{Path(origin).name} is not a zip that can be read "
                                                             f"({_why(error)}); ask for it again"))]
-    holding = {folder: entries for folder, entries in folders.items() if any(_exercise_of(e.name) for e in entries)}
+    holding = {folder: entries for folder, entries in folders.items()
+               if any(_may_hold_exercise(e.name) for e in entries)}
     if len(holding) == 1 and not inner:
         return [_submission(name, next(iter(holding.values())), origin)]
     found = inner + [_submission(PurePosixPath(folder).name or name, entries, f"{origin}:{folder}")
@@ -250,6 +251,11 @@ def _exercise_of(name: str) -> str | None:
         if lowered in (file_name, file_name.removesuffix(".py") + ".ipynb"):
             return exercise
     return None
+
+
+def _may_hold_exercise(name: str) -> bool:
+    """An exercise's file by its name, or a notebook (which may name its exercise in its metadata)."""
+    return _exercise_of(name) is not None or name.lower().endswith(".ipynb")
 
 
 def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, bytes | Fault]:

@@ -1,0 +1,67 @@
+"""`appsim check` (in the student's own process) and `appsim grade` (in the grader's sandbox) give one verdict: the same
+checks passed and failed, the same fault, the same messages, for the solutions, the starters and every typical mistake,
+on two seeds."""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import pytest
+from mistakes import MISTAKES
+from test_mistakes import edited_source
+
+from appsim.workshop.checks import check
+from appsim.workshop.course import EXERCISE_FILES, EXERCISES, SOLUTIONS, STARTERS
+from appsim.workshop.grading.grade import run
+from appsim.workshop.sandbox.children import Limits
+
+SEEDS = (202, 7)
+
+
+def firmwares() -> dict[str, tuple[str, str]]:
+    """Submission name -> (exercise, source): every solution, every starter, every mistake."""
+    found = {}
+    for exercise in EXERCISES:
+        found[f"solution_{exercise}"] = (exercise, (SOLUTIONS / EXERCISE_FILES[exercise]).read_text())
+        found[f"starter_{exercise}"] = (exercise, (STARTERS / EXERCISE_FILES[exercise]).read_text())
+    for mistake in MISTAKES:
+        found[f"mistake_{mistake.name}"] = (mistake.exercise, edited_source(mistake))
+    return found
+
+
+@pytest.fixture(scope="module")
+def both_ways(tmp_path_factory):
+    """For each seed: the grade records of a class made of every firmware, and the in-process verdicts."""
+    root = tmp_path_factory.mktemp("verdicts")
+    sources = firmwares()
+    for name, (exercise, source) in sources.items():
+        (root / "class" / name).mkdir(parents=True)
+        (root / "class" / name / EXERCISE_FILES[exercise]).write_text(source)
+    graded, checked = {}, {}
+    for seed in SEEDS:
+        records = run([root / "class"], results=root / f"grades{seed}.jsonl", jobs=2, seed=seed,
+                      limits=Limits(time_s=30, stall_s=5), out=io.StringIO())
+        graded[seed] = {r["submission"]: r["exercises"][sources[r["submission"]][0]] for r in records}
+    return root, sources, graded
+
+
+def local_verdict(root: Path, name: str, exercise: str, seed: int, monkeypatch) -> dict:
+    monkeypatch.chdir(root / "class" / name)          # the file by its own name, as the grader's child names it
+    verdict = check(exercise, EXERCISE_FILES[exercise], seed=seed).to_dict()
+    return {"score": verdict["score"], "max_score": verdict["max_score"], "fault": verdict["fault"],
+            "checks": verdict["checks"]}
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("name", sorted(firmwares()))
+def test_check_and_grade_give_the_same_verdict(both_ways, name, seed, monkeypatch):
+    root, sources, graded = both_ways
+    exercise = sources[name][0]
+    assert graded[seed][name] == local_verdict(root, name, exercise, seed, monkeypatch)
+
+
+def test_the_class_covers_every_exercise_with_passing_and_failing_firmware(both_ways):
+    _, sources, graded = both_ways
+    for exercise in EXERCISES:
+        scores = [graded[SEEDS[0]][n]["score"] for n, (e, _) in sources.items() if e == exercise]
+        assert max(scores) > min(scores), exercise
