@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextvars
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import greenlet
@@ -30,6 +31,20 @@ class Peripheral(Protocol):
     def write(self, address: int, value: int) -> None: ...
 
 
+READ_AHEAD_MAX_PS = 1 << 62           # a horizon with no event ahead
+
+
+@dataclass(frozen=True)
+class ReadAhead:
+    """See `PIC18F8680.read_ahead`: the time the firmware may spend, the registers it may read without asking (address,
+    value, read since the last change), whether `sites` (address, call site) are the polling loop's at this change."""
+
+    budget_ps: int
+    current: bool
+    entries: list[tuple[int, int, bool]]
+    sites: list[tuple[int, int]]
+
+
 class PIC18F8680(SFRNames):
     """One microcontroller on the simulated clock, with its ECAN module mapped at F00h..F77h, FA3h..FA5h."""
 
@@ -38,7 +53,7 @@ class PIC18F8680(SFRNames):
         self.name = name
         self.fosc = fosc
         self.tcy_ps = 4 * PS_PER_SECOND // fosc
-        self._access_ps = SFR_ACCESS_CYCLES * self.tcy_ps
+        self.access_ps = SFR_ACCESS_CYCLES * self.tcy_ps
         self.ecan = ECAN()
         self.sfr_addresses: dict[str, int] = {}
         self._devices: dict[int, Peripheral] = {}
@@ -70,7 +85,7 @@ class PIC18F8680(SFRNames):
         device = self._devices.get(address)
         process = self.process
         if process is not None and _getcurrent() is process:
-            process.local_time += self._access_ps     # process.spend, its common case inline
+            process.local_time += self.access_ps     # process.spend, its common case inline
             if process.local_time > process.horizon:
                 process.spend(0)
             again = self._seen.get(address) == self.version    # after spend: other firmware and events may have run
@@ -102,10 +117,28 @@ class PIC18F8680(SFRNames):
         self._parked_on = self._polled if self._polled_pure else None
         process.park()
 
+    def read_ahead(self, addresses: Iterable[int]) -> ReadAhead:
+        """What firmware that runs elsewhere (the grader's sandbox) may read without asking, right now.
+
+        Nothing else runs until the firmware writes a register or has spent `budget_ps` (then it reaches the horizon
+        and hands over), so until then the registers among `addresses` whose reading changes nothing keep the values
+        given here. With whether each was read since the last change, and the polling loop's sites at this change,
+        the firmware can apply `_read_again`'s rule itself and ask only for a read that would park.
+        """
+        process = self.process
+        assert process is not None
+        budget = process.horizon - process.local_time
+        devices, seen, version = self._devices, self._seen, self.version
+        entries = [(address, devices[address].read(address) if address in devices else 0, seen.get(address) == version)
+                   for address in addresses if address not in self.time_varying and address not in self.read_side_effects]
+        current = self._polled_version == version
+        return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, entries,
+                         [site for site in self._polled_sites if isinstance(site[1], int)] if current else [])
+
     def write(self, address: int, value: int) -> None:
         process = self.process
         if process is not None and _getcurrent() is process:
-            process.spend(self._access_ps)
+            process.spend(self.access_ps)
         self.version += 1
         device = self._devices.get(address)
         if device is not None:

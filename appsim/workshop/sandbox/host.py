@@ -38,6 +38,7 @@ class SandboxedFirmware:
         self.round_trips = 0
         self._child: Child | None = None
         self._error: Exception | None = None
+        self._reads: set[int] = set()   # the registers the firmware has read: those a read-ahead offers
 
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
@@ -74,7 +75,7 @@ class SandboxedFirmware:
         assert process is not None and self._child is not None
         process.watched = False         # the sandbox's own limits (stall_s, time_s) govern it, not the watchdog
         try:
-            self._child.channel.send(wire.GO)
+            self._child.channel.send(wire.GO + wire.GO_TIMES.pack(mcu.access_ps, mcu.tcy_ps))
             fault = self._serve(mcu)
         except Exception as error:      # a fault of the grader's own, never the student's
             fault = Fault("grader", f"the grader failed while running this firmware: {type(error).__name__}: {error}")
@@ -106,8 +107,9 @@ class SandboxedFirmware:
                             self._error = error
                         else:
                             self.round_trips += 1
+                            self._reads.add(address)
                             try:
-                                os.write(write_fd, wire.VALUE_REPLY + bytes((value & 0xFF,)))
+                                channel.send(self._answer(mcu, value))
                             except OSError:
                                 return self._gone()
                             continue
@@ -135,11 +137,14 @@ class SandboxedFirmware:
         """Do a batch on the board; the answer when it ends with an access that waits for one. An access the board
         refuses (an error from a peripheral) skips the rest of the batch and is raised in the child at its answer."""
         value = 0
-        for op, first, second in accesses:
+        for op, first, second, third in accesses:
             if self._error is None:
                 try:
-                    if op is wire.READ:
+                    if op is wire.SERVED:
+                        self._replay(mcu, first, second, third)
+                    elif op is wire.READ:
                         value = mcu.read(first, second)
+                        self._reads.add(first)
                     elif op is wire.WRITE:
                         mcu.write(first, second)
                     elif op is wire.SPEND:
@@ -152,8 +157,26 @@ class SandboxedFirmware:
                 if self._error is not None:
                     reply, self._error = wire.error_message(self._error), None
                     return reply
-                return wire.VALUE + bytes((value & 0xFF,)) if op is wire.READ else wire.DONE
+                return self._answer(mcu, value) if op is wire.READ else wire.DONE
         return None
+
+    def _answer(self, mcu: PIC18F8680, value: int) -> bytes:
+        """A read's answer, with what the firmware may read next without asking (see PIC18F8680.read_ahead)."""
+        ahead = mcu.read_ahead(self._reads)
+        return (wire.VALUE + bytes((value & 0xFF,))
+                + wire.read_ahead_message(ahead.budget_ps, ahead.current, ahead.entries, ahead.sites))
+
+    def _replay(self, mcu: PIC18F8680, address: int, site: int, used: int) -> None:
+        """A read the child answered from its read-ahead, done on the board as it would have been asked: it must
+        neither park nor hand over, and must give what the child used (else the read-ahead was wrong: a grader fault)."""
+        process = mcu.process
+        assert process is not None
+        expected = process.local_time + mcu.access_ps
+        value = mcu.read(address, site)
+        self._reads.add(address)
+        if value != used or process.local_time != expected:
+            raise RuntimeError(f"the read-ahead of register 0x{address:03X} disagreed with the board (gave {used}, "
+                               f"the board {value}; local time {process.local_time} ps, expected {expected} ps)")
 
     # -------------------------------------------------------------- endings
     def _receive(self) -> bytes | Fault:

@@ -17,17 +17,25 @@ MAX_TEXT = 8000                     # bytes of a message the child words itself 
 MAX_IDENTITY = 512
 
 # Child to grader. Alone: HELLO (booted, waiting for its firmware), LOADED + JSON identity, LOAD_FAILED + text,
-# RETURNED, RAISED + text, OUT_OF_MEMORY, EXITED. Or a BATCH of accesses: WRITE address:u16
-# value:u8 and SPEND cycles:u64 items, ended by at most one item that waits for its answer, READ address:u16
-# site:i64 or DISPLAY op:u8 (INITIAL; CURSOR line:i64 column:i64; TEXT count:u16 codes:u8*count).
+# RETURNED, RAISED + text, OUT_OF_MEMORY, EXITED. Or a BATCH of accesses: WRITE address:u16 value:u8, SPEND
+# cycles:u64 and SERVED address:u16 site:i64 value:u8 (a read the child answered from its read-ahead) items, ended by
+# at most one item that waits for its answer, READ address:u16 site:i64 or DISPLAY op:u8 (INITIAL; CURSOR line:i64
+# column:i64; TEXT count:u16 codes:u8*count).
 HELLO, LOADED, LOAD_FAILED, RETURNED, RAISED, OUT_OF_MEMORY, EXITED, BATCH = (
     b"H", b"L", b"F", b"E", b"X", b"M", b"Q", b"B")
-WRITE, SPEND, READ, DISPLAY = b"W", b"S", b"R", b"D"
+WRITE, SPEND, SERVED, READ, DISPLAY = b"W", b"S", b"r", b"R", b"D"
 INITIAL, CURSOR, TEXT = 0, 1, 2
-# Grader to child: SOURCE name-length:u16 name source, GO, VALUE value:u8, DONE (display), ERROR + JSON [class, text].
+# Grader to child: SOURCE name-length:u16 name source; GO access_ps:u64 tcy_ps:u64; VALUE value:u8 and a read-ahead
+# (READ_AHEAD: budget_ps:u64 current:u8 entries:u16 sites:u16, then entries x (address:u16 value:u8 seen:u8) and
+# sites x (address:u16 site:i64); see PIC18F8680.read_ahead); DONE (display); ERROR + JSON [class, text].
 SOURCE, GO, VALUE, DONE, ERROR = b"S", b"G", b"V", b"K", b"Z"
 
 WRITE_ITEM = struct.Struct("<cHB")
+SERVED_ITEM = struct.Struct("<cHqB")
+GO_TIMES = struct.Struct("<QQ")
+READ_AHEAD = struct.Struct("<QBHH")
+READ_AHEAD_ENTRY = struct.Struct("<HBB")
+READ_AHEAD_SITE = struct.Struct("<Hq")
 SPEND_ITEM = struct.Struct("<cQ")
 READ_ITEM = struct.Struct("<cHq")
 CURSOR_ITEM = struct.Struct("<cBqq")
@@ -107,7 +115,7 @@ class Channel:
 
 # ====================================================================== what a child may say
 
-Access = tuple[bytes, int, int]      # (op, first argument, second argument), decoded
+Access = tuple[bytes, int, int, int]     # (op, first, second, third argument), decoded
 _READ_ALONE = 1 + READ_ITEM.size     # the most common message by far: a batch of one READ
 # Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (count; the codes apart).
 DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT = b"Di", b"Dc", b"Dt"
@@ -118,7 +126,7 @@ def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
     answer (a READ or a display item). ProtocolError if anything is off."""
     if len(message) == _READ_ALONE and message[1:2] == READ:
         _, address, site = READ_ITEM.unpack_from(message, 1)
-        return [(READ, _address(address), site)], b""
+        return [(READ, _address(address), site, 0)], b""
     items: list[Access] = []
     position, end = 1, len(message)
     try:
@@ -126,15 +134,19 @@ def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
             op = message[position:position + 1]
             if op == WRITE:
                 _, address, value = WRITE_ITEM.unpack_from(message, position)
-                items.append((WRITE, _address(address), value))
+                items.append((WRITE, _address(address), value, 0))
                 position += WRITE_ITEM.size
             elif op == SPEND:
                 _, cycles = SPEND_ITEM.unpack_from(message, position)
-                items.append((SPEND, cycles, 0))
+                items.append((SPEND, cycles, 0, 0))
                 position += SPEND_ITEM.size
+            elif op == SERVED:
+                _, address, site, value = SERVED_ITEM.unpack_from(message, position)
+                items.append((SERVED, _address(address), site, value))
+                position += SERVED_ITEM.size
             elif op == READ:
                 _, address, site = READ_ITEM.unpack_from(message, position)
-                items.append((READ, _address(address), site))
+                items.append((READ, _address(address), site, 0))
                 position += READ_ITEM.size
                 break
             elif op == DISPLAY:
@@ -154,14 +166,14 @@ def _display(message: bytes, position: int) -> tuple[Access, bytes]:
     kind = message[position + 1] if position + 1 < len(message) else -1
     rest = len(message) - position
     if kind == INITIAL and rest == 2:
-        return (DISPLAY_INITIAL, 0, 0), b""
+        return (DISPLAY_INITIAL, 0, 0, 0), b""
     if kind == CURSOR and rest == CURSOR_ITEM.size:
         _, _, line, column = CURSOR_ITEM.unpack_from(message, position)
-        return (DISPLAY_CURSOR, line, column), b""
+        return (DISPLAY_CURSOR, line, column, 0), b""
     if kind == TEXT and rest >= TEXT_HEAD.size:
         _, _, count = TEXT_HEAD.unpack_from(message, position)
         if rest - TEXT_HEAD.size == count:
-            return (DISPLAY_TEXT, count, 0), message[position + TEXT_HEAD.size:]
+            return (DISPLAY_TEXT, count, 0, 0), message[position + TEXT_HEAD.size:]
     raise ProtocolError("a display operation that is not one")
 
 
@@ -200,6 +212,31 @@ def decode_text(data: bytes) -> str:
 def source_message(name: str, source: bytes) -> bytes:
     encoded = name.encode()
     return SOURCE + NAME_LENGTH.pack(len(encoded)) + encoded + source
+
+
+def read_ahead_message(budget_ps: int, current: bool, entries: list[tuple[int, int, bool]],
+                       sites: list[tuple[int, int]]) -> bytes:
+    return b"".join([READ_AHEAD.pack(budget_ps, current, len(entries), len(sites)),
+                     *(READ_AHEAD_ENTRY.pack(a, v, s) for a, v, s in entries),
+                     *(READ_AHEAD_SITE.pack(a, s) for a, s in sites)])
+
+
+def decode_read_ahead(data: bytes) -> tuple[int, bool, dict[int, int], set[int], set[tuple[int, int]]]:
+    """The child's side: budget, current, {address: value}, the addresses read since the last change, the sites."""
+    budget, current, count, site_count = READ_AHEAD.unpack_from(data)
+    values, seen = {}, set()
+    position = READ_AHEAD.size
+    for _ in range(count):
+        address, value, was_seen = READ_AHEAD_ENTRY.unpack_from(data, position)
+        position += READ_AHEAD_ENTRY.size
+        values[address] = value
+        if was_seen:
+            seen.add(address)
+    sites = set()
+    for _ in range(site_count):
+        sites.add(READ_AHEAD_SITE.unpack_from(data, position))
+        position += READ_AHEAD_SITE.size
+    return budget, bool(current), values, seen, sites
 
 
 def error_message(error: Exception) -> bytes:
