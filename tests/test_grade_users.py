@@ -1,0 +1,79 @@
+"""`appsim grade` where instructors really run it: from the folder that holds the clone, in a venv whose base Python
+lives in a private (0700) home, and as an ordinary user (with the kit installed from a wheel, in a venv in that user's
+private home) — the grading and attack tests pass there as they do here."""
+from __future__ import annotations
+
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS
+
+KIT = Path(__file__).resolve().parent.parent
+USER = os.environ.get("APPSIM_TEST_USER")                   # set by .ci/run, which creates the user and its venv
+USER_PYTHON = os.environ.get("APPSIM_TEST_USER_PYTHON")
+STDLIB_IMPORTS = "import statistics, datetime, queue\n"
+
+
+def private(path: Path) -> bool:
+    """Whether some folder above `path` is closed to other users (a 0700 home)."""
+    return any(not (parent.stat().st_mode & stat.S_IXOTH) for parent in path.resolve().parents)
+
+
+def a_class(root: Path) -> Path:
+    room = root / "class"
+    for name, transform in (("alice", lambda s: s), ("pat", lambda s: STDLIB_IMPORTS + s)):
+        (room / name).mkdir(parents=True)
+        for file in EXERCISE_FILES.values():
+            (room / name / file).write_text(transform((SOLUTIONS / file).read_text()))
+    return room
+
+
+@pytest.mark.skipif(not private(Path(sys.base_prefix)), reason=f"this Python ({sys.base_prefix}) is not in a private home")
+def test_from_the_folder_holding_the_clone_in_a_venv_over_a_private_python(tmp_path):
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True)
+    holder = tmp_path / "work"
+    clone = holder / "appsim"                               # `git clone ... appsim`: a folder named like the package
+    clone.mkdir(parents=True)
+    (clone / "README.md").write_text("a clone")
+    for module in ("cli.py", "workshop.py"):                # were the clone folder taken for the kit, these would run
+        (clone / module).write_text("raise ImportError('the clone folder was imported as the kit')")
+    room = a_class(tmp_path)
+    console = venv / "bin" / "appsim"                       # as pip writes the console script
+    console.write_text(f"#!{venv / 'bin' / 'python'}\nimport sys\nfrom appsim.cli import main\nsys.exit(main())\n")
+    console.chmod(0o755)
+    result = subprocess.run([str(console), "grade", str(room), "--seed", "5"], cwd=holder, capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "alice                     35/35" in result.stdout and "pat                       35/35" in result.stdout
+
+
+@pytest.mark.skipif(not (USER and USER_PYTHON and os.geteuid() == 0),
+                    reason="needs root and APPSIM_TEST_USER / APPSIM_TEST_USER_PYTHON (.ci/run sets them up)")
+def test_the_grading_and_attack_tests_pass_as_an_ordinary_user():
+    import pwd
+
+    account = pwd.getpwnam(USER)
+    assert private(Path(USER_PYTHON).parent), "the user's venv is meant to be in its private home"
+    copy = Path(tempfile.mkdtemp(prefix="appsim-as-user-"))
+    try:
+        for part in ("tests", "exercises", "solutions", "notebooks"):
+            shutil.copytree(KIT / part, copy / part, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+        for path in (copy, *copy.rglob("*")):
+            os.chown(path, account.pw_uid, account.pw_gid)
+        env = {"PATH": f"{Path(USER_PYTHON).parent}:/usr/bin:/bin", "HOME": account.pw_dir, "LANG": "C.UTF-8"}
+        result = subprocess.run(
+            ["runuser", "-u", USER, "--", USER_PYTHON, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
+             "tests/test_grade.py", "tests/test_grade_attacks.py"],
+            cwd=copy, env=env, capture_output=True, text=True, timeout=900)
+        assert result.returncode == 0, result.stdout[-6000:] + result.stderr[-3000:]
+        assert " passed" in result.stdout and "skipped" not in result.stdout.splitlines()[-1]
+    finally:
+        shutil.rmtree(copy, ignore_errors=True)
