@@ -69,8 +69,9 @@ def test_the_grading_and_attack_tests_pass_as_an_ordinary_user():
         for path in (copy, *copy.rglob("*")):
             os.chown(path, account.pw_uid, account.pw_gid)
         env = {"PATH": f"{Path(USER_PYTHON).parent}:/usr/bin:/bin", "HOME": account.pw_dir, "LANG": "C.UTF-8"}
+        runuser = shutil.which("runuser") or "/usr/sbin/runuser"     # found on root's PATH, not the user's
         result = subprocess.run(
-            ["runuser", "-u", USER, "--", USER_PYTHON, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
+            [runuser, "-u", USER, "--", USER_PYTHON, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
              "tests/test_grade.py", "tests/test_grade_attacks.py"],
             cwd=copy, env=env, capture_output=True, text=True, timeout=900)
         assert result.returncode == 0, result.stdout[-6000:] + result.stderr[-3000:]

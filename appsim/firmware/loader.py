@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import itertools
+import linecache
 import traceback
 from collections.abc import Mapping
 from pathlib import Path
@@ -24,7 +25,15 @@ def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) ->
     follow. Six stations run one solution file with six identifiers this way.
     """
     path = Path(path)
-    tree = _parse(path)
+    return load_source(path, _read(path), defines)
+
+
+def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | None = None) -> ModuleType:
+    """Load firmware from its bytes, as if from the file `path` (its name in messages and tracebacks), with
+    `defines` as `load_firmware` takes them. Its lines are what tracebacks show, whatever the file holds later."""
+    path = Path(path)
+    tree = _parse(path, source)
+    linecache.cache[str(path)] = (len(source), None, source.decode("utf-8").splitlines(True), str(path))
     if defines:
         _apply_defines(tree, defines, path)
     try:
@@ -51,17 +60,21 @@ def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) ->
 
 def constants(path: str | Path) -> list[str]:
     """The names a firmware file assigns at top level (`NAME = <expr>`): the ones `defines` can replace."""
-    return list(_assignments(_parse(Path(path))))
+    path = Path(path)
+    return list(_assignments(_parse(path, _read(path))))
 
 
-def _parse(path: Path) -> ast.Module:
+def _read(path: Path) -> bytes:
     if not path.is_file():
         raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py file such as "
                             "exercises/ex1.py")
     try:
-        source = path.read_bytes()
+        return path.read_bytes()
     except OSError as error:
         raise FirmwareError(f"{path} cannot be read: {error.strerror}") from None
+
+
+def _parse(path: Path, source: bytes) -> ast.Module:
     try:
         return ast.parse(source.decode("utf-8"), filename=str(path))
     except UnicodeDecodeError as error:

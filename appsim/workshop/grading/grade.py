@@ -245,9 +245,8 @@ class _Pool:
                     selector.unregister(worker.stdout)
                     task, worker.task = worker.task, None
                     assert task is not None
-                    if line:
-                        result = json.loads(line)["result"]
-                    else:
+                    result = _result(line)
+                    if result is None:              # it died (or wrote half a line): the grader's fault, not the student's
                         result = _lost(task, seed, "the grader's worker process ended while grading it "
                                                    f"({worker.why_it_died()})")
                         worker = self._replace(worker)
@@ -281,6 +280,17 @@ class _Pool:
 
     def _worker(self, index: int) -> _Worker:
         return _Worker(self.settings, self.processors[index % len(self.processors)] if self.processors else None)
+
+
+def _result(line: str) -> Record | None:
+    """A worker's answer line, or None if it is not one (the worker died mid-line)."""
+    if not line.endswith("\n"):
+        return None
+    try:
+        result = json.loads(line)["result"]
+    except (ValueError, KeyError, TypeError):
+        return None
+    return result if isinstance(result, dict) else None
 
 
 def _lost(task: _Task, seed: int, why: str) -> Record:

@@ -121,11 +121,15 @@ class ResultsFile:
     def rewrite(self, records: Iterable[Record]) -> None:
         """All records, sorted by submission, replacing the file's content in one step."""
         temporary = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        with open(temporary, "w", encoding="utf-8") as file:
-            file.writelines(json.dumps(r, sort_keys=True) + "\n" for r in sorted(records, key=lambda r: r["submission"]))
-            file.flush()
-            os.fsync(file.fileno())
-        os.replace(temporary, self.path)
+        try:
+            with open(temporary, "w", encoding="utf-8") as file:
+                file.writelines(json.dumps(r, sort_keys=True) + "\n"
+                                for r in sorted(records, key=lambda r: r["submission"]))
+                file.flush()
+                os.fsync(file.fileno())
+            os.replace(temporary, self.path)
+        finally:
+            temporary.unlink(missing_ok=True)
 
     def close(self) -> None:
         self._file.close()

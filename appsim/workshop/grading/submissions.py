@@ -71,7 +71,7 @@ def find_submissions(paths: Sequence[str | Path]) -> list[Submission]:
         if stat.S_ISDIR(info.st_mode):
             found.extend(_from_folder(path, path.resolve().name))
         elif stat.S_ISREG(info.st_mode) and path.suffix.lower() == ".zip":
-            found.extend(_from_zip_file(path, path.stem))
+            found.extend(_from_zip_file(path, path.stem, class_zip=True))
         elif stat.S_ISREG(info.st_mode) and path.suffix.lower() in (".py", ".ipynb"):
             found.append(_submission(path.resolve().parent.name, [_Entry.on_disk(path)], str(path)))
         else:
@@ -140,16 +140,18 @@ def _folder_entries(folder: Path) -> list[_Entry]:
     return entries
 
 
-def _from_zip_file(path: Path, name: str) -> list[Submission]:
+def _from_zip_file(path: Path, name: str, *, class_zip: bool = False) -> list[Submission]:
     try:
         data = _read_regular(path, MAX_ZIP)
     except (OSError, GradeError) as error:
         return [_refused(name, str(path), Fault("unreadable", f"{path.name} cannot be read: {_why(error)}"))]
-    return _from_zip(data, name, str(path))
+    return _from_zip(data, name, str(path), class_zip=class_zip)
 
 
-def _from_zip(data: bytes, name: str, origin: str, *, nested: bool = False) -> list[Submission]:
-    """A zip's submissions: one (its files, or one folder's), or one per folder (or per inner zip) of a class."""
+def _from_zip(data: bytes, name: str, origin: str, *, class_zip: bool = False) -> list[Submission]:
+    """A zip's submissions: one (its files, or one folder's); or, for a zip the instructor gives as a class
+    (`class_zip`), one per folder or per inner zip. A student's zip holding several submissions is refused, so that
+    no upload can speak for a classmate."""
     try:
         archive = zipfile.ZipFile(io.BytesIO(data))
         members = [m for m in archive.infolist() if not m.is_dir()]
@@ -164,9 +166,9 @@ def _from_zip(data: bytes, name: str, origin: str, *, nested: bool = False) -> l
             if any(part.startswith(("__MACOSX", ".")) for part in member_path.parts):
                 continue
             folder = "/".join(member_path.parts[:-1])
-            if member_path.suffix.lower() == ".zip" and not nested:
-                inner.extend(_from_zip(_read_member(archive, member, MAX_ZIP), member_path.stem, f"{origin}:{member_path}",
-                                       nested=True))
+            if member_path.suffix.lower() == ".zip" and class_zip:
+                inner.extend(_from_zip(_read_member(archive, member, MAX_ZIP), member_path.stem,
+                                       f"{origin}:{member_path}"))
             else:
                 folders.setdefault(folder, []).append(_zip_entry(archive, member, member_path.name))
     except (zipfile.BadZipFile, zipfile.LargeZipFile, GradeError, OSError, RuntimeError, ValueError, EOFError,
@@ -177,6 +179,10 @@ def _from_zip(data: bytes, name: str, origin: str, *, nested: bool = False) -> l
                if any(_may_hold_exercise(e.name) for e in entries)}
     if len(holding) == 1 and not inner:
         return [_submission(name, next(iter(holding.values())), origin)]
+    if len(holding) > 1 and not class_zip:
+        shown = ", ".join(f"{folder or '(top)'}/" for folder in sorted(holding))
+        return [_refused(name, origin, Fault("unreadable", f"{Path(origin).name} holds more than one submission "
+                                                            f"({shown}): a zip is one student's work, one folder"))]
     found = inner + [_submission(PurePosixPath(folder).name or name, entries, f"{origin}:{folder}")
                      for folder, entries in holding.items()]
     return found or [_refused(name, origin, Fault("missing", f"{Path(origin).name} holds no firmware file: "

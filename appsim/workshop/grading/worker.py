@@ -18,6 +18,7 @@ from appsim.workshop.sandbox.isolation import Isolation
 
 def main() -> None:
     """Settings on the first line (isolation, limits), then one task per line until stdin ends."""
+    _die_with_the_grader()
     signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the coordinator's to handle
     replies = os.fdopen(os.dup(1), "w", encoding="utf-8")
     os.dup2(2, 1)                                       # nothing printed in here can break a reply
@@ -33,6 +34,22 @@ def main() -> None:
             result = grade_exercise(sandbox, task["exercise"], task["name"], source, task["seed"], task["problem"])
             replies.write(json.dumps({"task": task["task"], "result": result}) + "\n")
             replies.flush()
+
+
+def _die_with_the_grader() -> None:
+    """End this worker (and so, through --die-with-parent, its sandboxes) when the grader that started it ends,
+    however it ends: PR_SET_PDEATHSIG on Linux; elsewhere the worker ends when its stdin does."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    parent = os.getppid()
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:              # the grader ended before the call
+        os._exit(1)
+
+
+PR_SET_PDEATHSIG = 1
 
 
 if __name__ == "__main__":

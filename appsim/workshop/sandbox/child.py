@@ -18,11 +18,11 @@ from typing import Any
 from appsim import errors
 from appsim.chip.sfr import ADDRESSES, RUNNING_MCU, SFRNames, firmware_entry, firmware_location
 from appsim.errors import FirmwareError
-from appsim.firmware.loader import crash_message, load_firmware
+from appsim.firmware.loader import crash_message, load_source
 from appsim.workshop.sandbox import protocol as wire
 from appsim.workshop.sandbox.protocol import Channel
 
-WORK = Path("/firmware")            # the sandbox's own working directory (the grader's Isolation mounts it)
+FOLDER = Path("/firmware")          # where the firmware's file would be: only its name is shown
 
 
 class RemoteMCU(SFRNames):
@@ -194,21 +194,21 @@ def main(settings: dict[str, Any]) -> None:
     if message is None or message[:1] != wire.SOURCE:
         return
     (length,) = wire.NAME_LENGTH.unpack_from(message, 1)
-    name = message[3:3 + length].decode()
-    work = Path(settings.get("work", WORK))
-    path = work / name
-    path.write_bytes(message[3 + length:])
-    os.chdir(work)
+    path = FOLDER / message[3:3 + length].decode()
+    source = message[3 + length:]
     _limit(settings)
     mcu = RemoteMCU(channel)
     RUNNING_MCU.set(mcu)
     try:
-        module = load_firmware(path)
+        module = load_source(path, source)
     except FirmwareError as error:
         mcu.report(wire.LOAD_FAILED, str(error))
         return
-    identity = {name: value for name in ("MESSAGE_ID1", "RTR_ID")
-                if type(value := getattr(module, name, None)) is int and -wire.IDENTITY_LIMIT < value < wire.IDENTITY_LIMIT}
+    identity = {}
+    for name in ("MESSAGE_ID1", "RTR_ID"):              # what it calls itself: integers only (see checks.trial)
+        value = getattr(module, name, None)
+        if type(value) is int and -wire.IDENTITY_LIMIT < value < wire.IDENTITY_LIMIT:
+            identity[name] = value
     mcu.report(wire.LOADED, json.dumps(identity))
     go = channel.receive()
     if go is None or go[:1] != wire.GO:

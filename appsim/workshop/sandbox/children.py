@@ -5,10 +5,8 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from dataclasses import dataclass
@@ -16,7 +14,7 @@ from typing import Any
 
 from appsim.errors import SandboxUnavailable
 from appsim.workshop.sandbox import protocol as wire
-from appsim.workshop.sandbox.isolation import Isolation, import_path, seccomp_program
+from appsim.workshop.sandbox.isolation import ENVIRONMENT, Isolation, import_path, seccomp_program
 from appsim.workshop.sandbox.protocol import Channel, ProtocolError
 
 BOOT = ("import json, sys; settings = json.loads(sys.argv[1]); sys.path[:0] = settings['path']; "
@@ -55,12 +53,10 @@ class Child:
         from_grader, to_child = os.pipe()
         from_child, to_grader = os.pipe()
         self.channel = Channel(from_child, to_child, wire.MAX_FROM_CHILD)
-        self._scratch = None if isolation is not None else tempfile.mkdtemp(prefix="appsim-firmware-")
+        self.cpu_limit_s = int(limits.time_s) + 2   # RLIMIT_CPU's soft limit (SIGXCPU); SIGKILL a second later
         settings: dict[str, Any] = {"read_fd": from_grader, "write_fd": to_grader, "path": import_path(),
                                     "memory_mb": limits.memory_mb, "file_mb": limits.file_mb,
-                                    "cpu_s": int(limits.time_s) + 2}
-        if self._scratch is not None:
-            settings["work"] = self._scratch
+                                    "cpu_s": self.cpu_limit_s}
         argv = [sys.executable, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
         theirs = [from_grader, to_grader]
         if isolation is not None:
@@ -73,7 +69,8 @@ class Child:
         self.expired = False
         try:
             self.process = subprocess.Popen(argv, pass_fds=theirs, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                            stderr=subprocess.PIPE, start_new_session=True)
+                                            stderr=subprocess.PIPE, start_new_session=True, cwd="/",
+                                            env=ENVIRONMENT)
         except BaseException:
             self.channel.close()
             raise
@@ -98,13 +95,22 @@ class Child:
         text = self.process.stderr.read(4000).decode("utf-8", "replace").strip()
         return text or f"it ended with status {self.process.returncode}"
 
-    def status(self, timeout: float = 5.0) -> int | None:
-        """How it ended (a signal as a negative number, as subprocess gives it); None if it is still running."""
-        try:
-            code = self.process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            return None
-        return -(code - 128) if code > 128 else code      # bubblewrap reports a signal as 128 + signal
+    def ended(self, timeout: float) -> tuple[int, float] | None:
+        """How it ended, if it does within `timeout`: its status (a signal as a negative number) and the CPU seconds
+        it used (bubblewrap reports a signal as 128 + signal, and counts its child's time as its own)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                pid, status, usage = os.wait4(self.process.pid, os.WNOHANG)
+            except ChildProcessError:       # reaped already
+                return (self.process.returncode or 0), 0.0
+            if pid:
+                code = os.waitstatus_to_exitcode(status)
+                self.process.returncode = code
+                return (-(code - 128) if code > 128 else code), usage.ru_utime + usage.ru_stime
+            if time.monotonic() >= deadline:
+                return None
+            time.sleep(0.01)
 
     def expire(self) -> None:
         """The watchdog's doing: its time is up."""
@@ -121,9 +127,6 @@ class Child:
         except subprocess.TimeoutExpired:
             pass
         self.channel.close()
-        if self._scratch is not None:
-            shutil.rmtree(self._scratch, ignore_errors=True)
-            self._scratch = None
 
 
 class Watchdog:

@@ -127,7 +127,10 @@ class SandboxedFirmware:
                 accesses, codes = wire.decode_batch(message)
             except ProtocolError as error:
                 return _protocol(error)
-            reply = self._perform(mcu, accesses, codes)
+            try:
+                reply = self._perform(mcu, accesses, codes)
+            except ProtocolError as error:
+                return _protocol(error)
             if reply is not None:
                 self.round_trips += 1
                 if not channel.send(reply):
@@ -138,11 +141,13 @@ class SandboxedFirmware:
         refuses (an error from a peripheral) skips the rest of the batch and is raised in the child at its answer."""
         value = 0
         for op, first, second, third in accesses:
+            if op is wire.SERVED:
+                if self._error is None:
+                    self._replay(mcu, first, second, third)
+                continue
             if self._error is None:
                 try:
-                    if op is wire.SERVED:
-                        self._replay(mcu, first, second, third)
-                    elif op is wire.READ:
+                    if op is wire.READ:
                         value = mcu.read(first, second)
                         self._reads.add(first)
                     elif op is wire.WRITE:
@@ -168,15 +173,17 @@ class SandboxedFirmware:
 
     def _replay(self, mcu: PIC18F8680, address: int, site: int, used: int) -> None:
         """A read the child answered from its read-ahead, done on the board as it would have been asked: it must
-        neither park nor hand over, and must give what the child used (else the read-ahead was wrong: a grader fault)."""
+        neither park nor hand over, and must give what the child used. The read-ahead allows nothing else, so a
+        served read that does is not one (a ProtocolError); checks and grade agreeing is tested on every solution."""
         process = mcu.process
         assert process is not None
         expected = process.local_time + mcu.access_ps
         value = mcu.read(address, site)
         self._reads.add(address)
         if value != used or process.local_time != expected:
-            raise RuntimeError(f"the read-ahead of register 0x{address:03X} disagreed with the board (gave {used}, "
-                               f"the board {value}; local time {process.local_time} ps, expected {expected} ps)")
+            raise ProtocolError(f"a read of register 0x{address:03X} it answered itself with {used}, where the "
+                                f"board reads {value}" + ("" if process.local_time == expected else
+                                                          ", at a time the board had moved on from"))
 
     # -------------------------------------------------------------- endings
     def _receive(self) -> bytes | Fault:
@@ -208,10 +215,16 @@ class SandboxedFirmware:
         return None
 
     def _gone(self) -> Fault:
-        """The child's end closed without saying why: it exited, or a limit stopped it."""
-        assert self._child is not None
-        status = self._child.status()
-        if status in (-signal.SIGXCPU, -signal.SIGKILL):
+        """The child's end closed without saying why: it exited, a limit stopped it, or it closed its pipes."""
+        child = self._child
+        assert child is not None
+        ended = child.ended(1.0)
+        if ended is None:                   # it closed its pipes and lives on: its run is over all the same
+            child.kill()
+            return Fault("exited", "the firmware's process closed its link to the board: firmware never does that; "
+                                   "main() loops forever, as main() does in EX1.C")
+        status, cpu_s = ended
+        if status in (-signal.SIGXCPU, -signal.SIGKILL) and cpu_s >= child.cpu_limit_s - 1:
             return Fault("time", f"CPU time limit: the firmware computed for more than {self.limits.time_s:g} s")
         if status == -signal.SIGSYS:
             return Fault("forbidden", "the firmware made a system call of another ABI (32-bit or x32), which the "

@@ -1,8 +1,8 @@
 """The operating system's walls around one sandboxed firmware: Linux namespaces by bubblewrap, and a seccomp filter.
 
-Each child gets its own user, PID, mount, network, IPC and UTS namespaces: it sees only itself, the Python runtime and
-the kit (read-only, reference solutions hidden) and two small empty folders of its own, has no network and no
-capabilities, cannot start a process or a thread, and dies with the grader. docs/grading.md says why bubblewrap.
+Each child gets its own user, PID, mount, network, IPC and UTS namespaces: it sees only itself, and, read-only, the
+Python runtime and the kit (reference solutions hidden); it can write nowhere, has no network and no capabilities,
+cannot start a process or a thread, and dies with the grader. docs/grading.md says why bubblewrap.
 """
 from __future__ import annotations
 
@@ -21,8 +21,10 @@ from appsim.errors import SandboxUnavailable
 
 SYSTEM = ("/usr", "/lib", "/lib32", "/lib64", "/libx32", "/bin", "/sbin", "/etc/ld.so.cache", "/etc/localtime",
           "/etc/alternatives")
-WORK = "/firmware"                  # the child's working directory (child.WORK)
-SCRATCH_MB = 32                     # each of the child's two writable folders (WORK and /tmp) holds at most this
+# /proc files that the sandbox's user could write were it the grader's own root (it has no capabilities, but is the
+# owner): the kernel's settings, the magic SysRq key, interrupt routing. Covered read-only, whoever grades.
+PROC_READ_ONLY = ("/proc/sys", "/proc/sysrq-trigger", "/proc/irq", "/proc/bus", "/proc/fs", "/proc/driver")
+ENVIRONMENT = {"PATH": "/usr/bin:/bin", "LANG": "C.UTF-8", "HOME": "/"}     # all bubblewrap and the child get
 
 # ------------------------------------------------------------------ seccomp: no process, no thread, nothing exotic
 # Classic BPF (struct sock_filter: u16 code, u8 jt, u8 jf, u32 k) over struct seccomp_data (nr at 0, arch at 4).
@@ -32,14 +34,18 @@ _EPERM = 1
 # Per machine: (AUDIT_ARCH, the first syscall number of a foreign ABI on it or None, the refused calls by number).
 # x86_64: clone 56 fork 57 vfork 58 clone3 435, ptrace 101, add_key 248 request_key 249 keyctl 250, unshare 272,
 # setns 308, mount 165 umount2 166 pivot_root 155 chroot 161, perf_event_open 298, bpf 321, userfaultfd 323,
-# process_vm_readv 310 process_vm_writev 311, io_uring_setup 425. aarch64 (asm-generic numbers, no fork or vfork):
-# clone 220 clone3 435, ptrace 117, add_key 217 request_key 218 keyctl 219, unshare 97, setns 268, mount 40
-# umount2 39 pivot_root 41 chroot 51, perf_event_open 241, bpf 280, userfaultfd 282, process_vm_* 270 271, 425.
+# process_vm_readv 310 process_vm_writev 311, io_uring_setup 425; memory that RLIMIT_AS does not count:
+# memfd_create 319, shmget 29 shmat 30 shmctl 31, msgget 68, mq_open 240. aarch64 (asm-generic numbers, no fork or
+# vfork): clone 220 clone3 435, ptrace 117, add_key 217 request_key 218 keyctl 219, unshare 97, setns 268, mount 40
+# umount2 39 pivot_root 41 chroot 51, perf_event_open 241, bpf 280, userfaultfd 282, process_vm_* 270 271, 425;
+# memfd_create 279, shmget 194 shmat 196 shmctl 195, msgget 186, mq_open 180.
 _REFUSED_CALLS: dict[str, tuple[int, int | None, tuple[int, ...]]] = {
     "x86_64": (0xC000_003E, 0x4000_0000,
-               (56, 57, 58, 435, 101, 248, 249, 250, 272, 308, 165, 166, 155, 161, 298, 321, 323, 310, 311, 425)),
+               (56, 57, 58, 435, 101, 248, 249, 250, 272, 308, 165, 166, 155, 161, 298, 321, 323, 310, 311, 425,
+                319, 29, 30, 31, 68, 240)),
     "aarch64": (0xC000_00B7, None,
-                (220, 435, 117, 217, 218, 219, 97, 268, 40, 39, 41, 51, 241, 280, 282, 270, 271, 425)),
+                (220, 435, 117, 217, 218, 219, 97, 268, 40, 39, 41, 51, 241, 280, 282, 270, 271, 425,
+                 279, 194, 196, 195, 186, 180)),
 }
 
 
@@ -74,18 +80,26 @@ class Isolation:
     hidden: tuple[str, ...]             # covered by an empty folder (or an empty file) inside what is readable
 
     def command(self, argv: Sequence[str], seccomp_fd: int) -> list[str]:
-        """The bwrap command line that runs `argv` in a fresh sandbox (with the filter read from `seccomp_fd`)."""
-        command = [self.bwrap, "--size", str(SCRATCH_MB << 20), "--tmpfs", "/tmp"]
+        """The bwrap command line that runs `argv` in a fresh sandbox (with the filter read from `seccomp_fd`).
+
+        The root and /dev are read-only, and nothing writable is mounted: firmware acts only through the board, so it
+        has no use for files (its source reaches it through its pipe). `argv` runs as the sandbox's pid 1, so no
+        other process is in there (nor its environment or its command line in /proc).
+        """
+        command = [self.bwrap]
         for path in self.readable:
             command += ["--ro-bind-try", path, path]
         for path in self.hidden:
-            command += (["--tmpfs", path] if os.path.isdir(path) else ["--ro-bind", os.devnull, path])
-        command += ["--size", str(SCRATCH_MB << 20), "--tmpfs", WORK, "--proc", "/proc", "--dev", "/dev",
-                    "--remount-ro", "/dev", "--remount-ro", "/",      # only WORK and /tmp can be written
-                    "--unshare-all", "--unshare-user", "--disable-userns", "--die-with-parent", "--new-session",
-                    "--cap-drop", "ALL", "--uid", "65534", "--gid", "65534", "--hostname", "sandbox",
-                    "--clearenv", "--setenv", "HOME", WORK, "--setenv", "PATH", "/usr/bin:/bin",
-                    "--setenv", "LANG", "C.UTF-8", "--chdir", WORK, "--seccomp", str(seccomp_fd), *argv]
+            command += (["--tmpfs", path, "--remount-ro", path] if os.path.isdir(path)
+                        else ["--ro-bind", os.devnull, path])
+        command += ["--proc", "/proc"]
+        for path in PROC_READ_ONLY:
+            command += ["--ro-bind-try", path, path]
+        command += ["--dev", "/dev", "--remount-ro", "/dev", "--remount-ro", "/",
+                    "--unshare-all", "--unshare-user", "--disable-userns", "--as-pid-1", "--die-with-parent",
+                    "--new-session", "--cap-drop", "ALL", "--uid", "65534", "--gid", "65534", "--hostname", "sandbox",
+                    "--clearenv", *(a for name, value in ENVIRONMENT.items() for a in ("--setenv", name, value)),
+                    "--chdir", "/", "--seccomp", str(seccomp_fd), *argv]
         return command
 
 
