@@ -358,3 +358,20 @@ def test_two_submissions_of_one_name_are_refused_naming_both(tmp_path):
         archive.writestr("ex1.py", SOLUTION_EX1)
     with pytest.raises(GradeError, match="two submissions are named 'alice'"):
         find_submissions([tmp_path / "class"])
+
+
+def test_ctrl_c_ends_with_one_line_exit_130_and_keeps_what_was_graded(tmp_path):
+    small_class(tmp_path / "class")
+    results = tmp_path / "class.grades.jsonl"
+    grader = subprocess.Popen(grade_command(str(tmp_path / "class"), "--seed", str(SEED), "--jobs", "1"),
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (results.exists() and results.read_text().count("\n") >= 1) and grader.poll() is None:
+        assert time.monotonic() < deadline, "no record written in 120 s"
+        time.sleep(0.02)
+    grader.send_signal(signal.SIGINT)
+    out, err = grader.communicate(timeout=60)
+    assert grader.returncode == 130, err
+    assert "interrupted" in err and "run the same command again" in err and "Traceback" not in err
+    kept = [json.loads(line)["submission"] for line in results.read_text().splitlines()]
+    assert kept and kept == [line.split()[1] for line in out.splitlines() if line.startswith("[")]
