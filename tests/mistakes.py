@@ -126,10 +126,10 @@ MISTAKES = [
               "CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_NORMAL)")],
             {EX4_FILTERS}, ["RXB0CON.RXM = 11", "CAN_CONFIG_VALID_STD_MSG"]),
 
-    # The RTR frame sent with DataLen 5 instead of 0: DLC 5.
-    Mistake("ex5_rtr_dlc_5", "ex5",
-            [("CANSendMessage(RTR_ID, None, 0,", "CANSendMessage(RTR_ID, None, 5,")],
-            {EX5_RTR}, ["RTR DLC 5", "DataLen 0"]),
+    # DataLen 3 in the request: neither the workshop's 0 nor the requested length 5 (CAN 2.0's advice).
+    Mistake("ex5_rtr_dlc_3", "ex5",
+            [("CANSendMessage(RTR_ID, None, 0,", "CANSendMessage(RTR_ID, None, 3,")],
+            {EX5_RTR}, ["RTR DLC 3", "DataLen 0", "5 here", "bit error"]),
     # No CAN_TX_RTR_FRAME: an empty data frame with RTR_ID, which the master does not answer.
     Mistake("ex5_data_not_rtr", "ex5",
             [("CAN_TX_STD_FRAME & CAN_TX_RTR_FRAME", "CAN_TX_STD_FRAME & CAN_TX_NO_RTR_FRAME")],

@@ -1,5 +1,5 @@
-"""Ex5's checks: on each Timer1 overflow an RTR for the station's RTR_ID (0x81..0x86) with DLC 0, not data;
-the master's answer (a data frame with that ID) is received and its A/D shows on the LCD.
+"""Ex5's checks: on each Timer1 overflow an RTR for the station's RTR_ID (0x81..0x86), not data, with the workshop's
+DLC 0 or the standard's 5 (the length of the data it asks for); the master's answer is received and shown on the LCD.
 """
 from __future__ import annotations
 
@@ -18,13 +18,15 @@ from appsim.workshop.checks.trial import (
 )
 from appsim.workshop.checks.verdict import CheckResult
 
-REQUESTS = "sends RTR frames for RTR_ID with DLC 0"
+REQUESTS = "sends RTR frames for RTR_ID (DLC 0 or 5)"
 PERIOD = "one RTR per Timer1 overflow (52.4288 ms)"
 ANSWER = "receives the master's answer"
 LCD = "LCD shows the master's A/D and RTR_ID"
 NAMES = (REQUESTS, PERIOD, ANSWER, LCD)
 SECONDS = 0.4                     # listen until ~50 ms, then six Timer1 overflows
 HOW = "CANSendMessage(RTR_ID, None, 0, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_RTR_FRAME)"
+ANSWER_BYTES = 5                  # the master answers with 01 02 03 ADRESH ADRESL
+REQUEST_DLCS = (0, ANSWER_BYTES)  # the workshop's DataLen 0; CAN 2.0's advice: the DLC of the data frame asked for
 
 
 def run(trial: Trial) -> list[CheckResult]:
@@ -49,9 +51,12 @@ def _requests(trial: Trial, mine) -> CheckResult:
                        f"send {HOW} (see the TODO)")
         elif frame.can_id != rtr_id:
             problem = f"it asks for {hex_id(frame.can_id)}; station {trial.station} asks for RTR_ID = {hex_id(rtr_id)}"
-        elif frame.dlc != 0:
-            problem = (f"DLC {frame.dlc}: the 3rd argument of CANSendMessage (DataLen) goes into TXB0DLC, and "
-                       "Ex5's request has DataLen 0")
+        elif frame.dlc not in REQUEST_DLCS:
+            problem = (f"DLC {frame.dlc}: a remote frame carries no data, but its DLC (CANSendMessage's DataLen, "
+                       f"into TXB0DLC) still goes on the wire. The workshop sends DataLen 0; CAN 2.0 advises the "
+                       f"length of the data frame asked for, {ANSWER_BYTES} here. Any other value is a mistake: two "
+                       "nodes asking for the same ID with different DLCs both win arbitration (the DLC comes after "
+                       "it) and destroy each other's request with a bit error")
         else:
             continue
         return CheckResult(REQUESTS, False, f"Sent {describe(frame)} at {ms(event.start_ps)}: {problem}.")
