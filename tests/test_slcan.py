@@ -79,10 +79,22 @@ def test_s_codes_are_lawicels_bit_rates():
     ("q", "not a command"), ("t10", "too short"), ("t1005010203", "10 hex digits"),
     ("t1009", "0..8"), ("t8000", "does not fit a standard"), ("T200000000", "does not fit an extended"),
     ("r1002AA", "no data"), ("t10G0", "hex digits"), ("t1 10", "hex digits"), ("t1002010", "4 hex digits"),
+    ("S\u0664", "one digit 0..8"), ("t100\u0661AA", "hex digits"),            # SLCAN is ASCII: Arabic-Indic digits
 ])
 def test_bad_commands_say_what_is_wrong(line, complaint):
     with pytest.raises(SlcanError, match=complaint):
         parse_command(line)
+
+
+@settings(max_examples=2000)
+@given(st.one_of(st.binary(max_size=40), st.from_regex(rb"\A[tTrRSZ][0-9A-Fa-f]{0,12}[0-9]?[0-9A-F ]{0,20}\Z")))
+def test_any_line_is_a_command_or_an_error_that_says_what_is_wrong(line):
+    try:
+        command = parse_command(line)
+    except SlcanError as error:
+        assert str(error)
+    else:
+        assert isinstance(command, (SetBitRate, Open, Close, Query, Timestamps, Transmit, Nothing))
 
 
 # ------------------------------------------------------------------ the Demo1 firmware as an SLCAN adapter
