@@ -217,13 +217,16 @@ def cmd_monitor(args: argparse.Namespace) -> int:
     if args.slcan:
         board.dsw2.on(1)
     board.run(SOLUTIONS / "demo1_monitor.py")
-    with UsbCdc(board, transport=args.transport) as usb:
+    try:
+        usb = UsbCdc(board, transport=args.transport)
+    except OSError as error:
+        raise SystemExit(f"appsim: cannot open the USB-CDC port ({args.transport}): {error}") from None
+    with usb:
         protocol = "SLCAN (python-can: interface='slcan')" if args.slcan else "text lines, 19200 8N1"
         print(f"Demo1 CAN monitor on the USB-CDC port {usb.url}  [{protocol}]\n"
               f"  open it with: python -m serial.tools.miniterm {usb.url} 19200   (or screen, minicom)\n"
               f"  running the classroom (exercise {args.exercise}) in real time for {args.seconds:g} s; "
               "Ctrl-C stops", file=out)
         session.run(args.seconds, live=False, real_time=True, pollers=(usb.poll,))
-        print(f"{len(session.bus.frames())} frames on the bus; {usb.lost_bytes} bytes lost on the USB side",
-              file=out)
+        print(f"{len(session.bus.frames())} frames on the bus\n{usb.report()}", file=out)
     return 0

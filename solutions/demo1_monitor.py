@@ -15,7 +15,10 @@ queue in RAM; when it is full they are counted and the monitor says how many it 
     # lost 7 frames (queue full: the USART at 19200 baud is slower than the bus)
 
 DSW2 switch 1 ON at reset (RJ0 reads 0): the board is an SLCAN (Lawicel) adapter instead, so a PC
-program such as python-can (`interface="slcan"`) can receive and send frames through it.
+program such as python-can (`interface="slcan"`) can receive and send frames through it. The PC may
+write faster than the adapter answers (opening the channel waits for the bus to go idle): when the
+USART's 2-byte FIFO overruns (OERR), the adapter resets its receiver, counts it, and refuses the
+command that lost bytes with BELL, so it always answers the next one.
 """
 from appsim.can import slcan
 from appsim.firmware import *
@@ -23,6 +26,8 @@ from appsim.can.frame import CanFrame
 
 QUEUE_FRAMES = 16             # frames waiting for the USART (13 bytes of RAM each)
 COMMAND_CHARS = 32            # longest SLCAN command: T + 8 + 1 + 16 = 26 characters
+OUTPUT_BYTES = 64             # SLCAN answers and frame lines waiting for the USART
+LONGEST_ANSWER = len(slcan.VERSION) + len(slcan.OK)     # V1013 CR
 
 # SLCAN Sn -> CANSetBaudRate(SJW, BRP, PHSEG1, PHSEG2, PROPSEG) at Fosc = 40 MHz (TQ = 2 * BRP / Fosc).
 # S0 (10 kbit/s) needs more than 64 x 25 TQ of 50 ns: the PIC at 40 MHz cannot go that slow.
@@ -45,6 +50,7 @@ overflows = 0                 # Timer1 overflows since reset: the high part of t
 queue = []                    # received frames (time, CANMessage) and ("lost", count) notes
 lost = 0                      # frames dropped since the last queued one
 output = bytearray()          # the line being sent, byte by byte
+usart_overruns = 0            # times the USART's receiver overran (OERR): each lost at least one byte from the PC
 
 
 def now_ticks():
@@ -126,17 +132,33 @@ def monitor():
 # ------------------------------------------------------------------ DSW2 switch 1 ON: SLCAN adapter
 
 class Adapter:
-    """The SLCAN adapter's settings: channel closed / open / listen-only, S code, time stamps, status."""
+    """The SLCAN adapter: the command being received, and the settings (channel closed / open / listen-only,
+    S code, time stamps, status)."""
 
     def __init__(self):
+        self.command = bytearray()              # the command line so far
+        self.spoiled = False                    # bytes of it were lost, or it is too long: refuse it
         self.mode = None                        # None: closed; else the CAN_OP_MODE it is open in
         self.code = 4                           # the last Sn (as an adapter remembers its setting)
         self.timestamps = False
         self.status = 0
 
+    def take(self, char):
+        """One byte from the PC; at the CR that ends a command, the answer to send."""
+        if char != 0x0D:
+            if len(self.command) < COMMAND_CHARS:
+                self.command.append(char)
+            else:
+                self.spoiled = True
+            return b""
+        answer = slcan.ERROR if self.spoiled else self.execute(bytes(self.command))
+        self.command.clear()
+        self.spoiled = False
+        return answer
+
     def execute(self, line):
-        global lost
         """Carry out one command line; the reply to send."""
+        global lost
         try:
             command = slcan.parse_command(line)
         except slcan.SlcanError:
@@ -212,21 +234,22 @@ class Adapter:
 
 
 def adapter():
+    global usart_overruns
     state = Adapter()
     CANSetOperationMode(CAN_OP_MODE_CONFIG)    # closed until the PC sends O or L
-    command = bytearray()
     while True:
         count_overflows()
-        if DataRdyUSART():
-            char = ReadUSART()
-            if char == 0x0D:
-                output.extend(state.execute(bytes(command)))
-                command.clear()
-            elif len(command) < COMMAND_CHARS:
-                command.append(char)
+        if len(output) + LONGEST_ANSWER <= OUTPUT_BYTES:   # room for an answer: listen to the PC
+            if DataRdyUSART():
+                output.extend(state.take(ReadUSART()))
+            elif RCSTAbits.OERR:               # a byte came with the FIFO full: lost, and reception stopped
+                RCSTAbits.CREN = 0             # the data sheet's recovery: clearing CREN clears OERR,
+                RCSTAbits.CREN = 1             # setting it receives again
+                usart_overruns += 1
+                state.spoiled = True           # the command being received lost bytes (after the FIFO's two)
         if state.mode is not None and CANIsRxReady():
             receive()
-        if queue and len(output) < 2 * COMMAND_CHARS:
+        if queue and not output:
             output.extend(state.frame_line(queue.pop(0)))
         send_next_byte()
 

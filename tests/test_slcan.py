@@ -8,6 +8,9 @@ from pathlib import Path
 
 import can
 import pytest
+import serial
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
@@ -76,10 +79,22 @@ def test_s_codes_are_lawicels_bit_rates():
     ("q", "not a command"), ("t10", "too short"), ("t1005010203", "10 hex digits"),
     ("t1009", "0..8"), ("t8000", "does not fit a standard"), ("T200000000", "does not fit an extended"),
     ("r1002AA", "no data"), ("t10G0", "hex digits"), ("t1 10", "hex digits"), ("t1002010", "4 hex digits"),
+    ("S\u0664", "one digit 0..8"), ("t100\u0661AA", "hex digits"),            # SLCAN is ASCII: Arabic-Indic digits
 ])
 def test_bad_commands_say_what_is_wrong(line, complaint):
     with pytest.raises(SlcanError, match=complaint):
         parse_command(line)
+
+
+@settings(max_examples=2000)
+@given(st.one_of(st.binary(max_size=40), st.from_regex(rb"\A[tTrRSZ][0-9A-Fa-f]{0,12}[0-9]?[0-9A-F ]{0,20}\Z")))
+def test_any_line_is_a_command_or_an_error_that_says_what_is_wrong(line):
+    try:
+        command = parse_command(line)
+    except SlcanError as error:
+        assert str(error)
+    else:
+        assert isinstance(command, (SetBitRate, Open, Close, Query, Timestamps, Transmit, Nothing))
 
 
 # ------------------------------------------------------------------ the Demo1 firmware as an SLCAN adapter
@@ -106,15 +121,30 @@ def station(can_id, received, *, every_ms=20):
     return main
 
 
-class AdapterRoom:
-    """A node sending 0x088, one receiving, and the Demo1 board with DSW2 switch 1 ON (SLCAN)."""
+def busy_sender(can_id):
+    """A node at 125 kbit/s sending 8-byte frames (1.1 ms each) 0.5 ms apart: the bus is busy 2/3 of the time."""
+    def main():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
+        count = 0
+        while True:
+            if CANSendMessage(can_id, [count & 0xFF] * 8, 8, CAN_TX_PRIORITY_0):
+                count += 1
+            Delay1KTCYx(5)
+    return main
 
-    def __init__(self):
+
+class AdapterRoom:
+    """A node sending 0x088, one receiving, and the Demo1 board with DSW2 switch 1 ON (SLCAN); with `busy`,
+    a node that keeps the bus busy most of the time (opening the channel waits for the bus to be idle)."""
+
+    def __init__(self, *, busy: bool = False):
         self.sim = Simulator()
         self.bus = Bus(self.sim)
         self.received = []
         APP023(self.bus, "sender").run(station(0x088, []))
         APP023(self.bus, "receiver").run(station(0x0F0, self.received, every_ms=10**9))
+        if busy:
+            APP023(self.bus, "busy").run(busy_sender(0x0AA))
         self.board = APP023(self.bus, "adapter")
         self.board.dsw2.on(1)
         self.board.run(SOLUTION)
@@ -240,6 +270,24 @@ def test_python_can_uses_the_board_as_an_slcan_adapter_to_receive_and_to_send(tr
     assert room.board.ecan.opmode.name == "CONFIGURATION", "python-can's shutdown sends C: the channel closes"
 
 
+@pytest.mark.parametrize("transport", ["pty", "socket"])
+def test_python_can_uses_the_adapter_after_a_program_flooded_it_at_full_speed_and_left(transport):
+    room = AdapterRoom(busy=True)
+    room.run(0.01)
+
+    def pc_program(results: dict) -> None:
+        with can.Bus(interface="slcan", channel=usb.url, bitrate=125000, sleep_after_open=0) as bus:
+            results["version"] = bus.get_version(timeout=2)
+            results["message"] = bus.recv(timeout=2)
+
+    with UsbCdc(room.board, transport=transport) as usb:
+        with serial.serial_for_url(usb.url) as flood:
+            flood.write(b"O\rC\r" * 30 + bytes(range(256)))
+        results = with_python_can(room, usb, pc_program)
+    assert results["version"] == (10, 13), "python-can got the adapter's version"
+    assert results["message"] is not None and results["message"].arbitration_id in (0x088, 0x0AA)
+
+
 def test_an_adapter_opened_at_another_bit_rate_cannot_read_the_bus_and_disturbs_it():
     room = AdapterRoom()
     room.run(0.01)
@@ -253,3 +301,100 @@ def test_an_adapter_opened_at_another_bit_rate_cannot_read_the_bus_and_disturbs_
     assert results["message"] is None
     destroyed = [e for e in room.bus.trace if e.sender == "sender" and "adapter" in e.error]
     assert destroyed and "bit timing does not match the bus" in destroyed[0].error
+
+
+# ------------------------------------------------------------------ whatever the PC writes, the adapter answers again
+
+FRAME_LINE = rb"[tTrR][0-9A-F]{4,}\r"                         # a received frame (with or without a time stamp)
+ANSWER = rb"\r|\a|[zZ]\r|V1013\r|NA023\r|F[0-9A-F]{2}\r"     # every answer the adapter gives
+
+
+def answers(stream: bytes) -> list[bytes]:
+    """The adapter's answers in what it sent, frame lines left out; everything it sent must be one or the other."""
+    assert re.fullmatch(rb"(?:%s|%s)*" % (FRAME_LINE, ANSWER), stream), f"a torn or unknown line in {stream!r}"
+    return [token for token in re.findall(rb"%s|%s" % (FRAME_LINE, ANSWER), stream)
+            if not re.fullmatch(FRAME_LINE, token)]
+
+
+class PcOnThePort:
+    """The busy room's adapter on its USB-CDC pty, opened with pyserial; the simulation runs in this thread."""
+
+    def __init__(self):
+        self.room = AdapterRoom(busy=True)
+        self.room.run(0.01)
+        self.usb = UsbCdc(self.room.board)
+        self.port = serial.Serial(self.usb.port, timeout=1)
+        self.unfinished = b""                           # the line the adapter was sending when the run stopped
+        self.received = 0
+
+    def send(self, data: bytes, seconds: float) -> bytes:
+        """Write `data` at once (the PC at full speed), run `seconds` past the time 19200 baud needs for it,
+        polling the bridge every 1 ms as WallClock does; the lines the adapter finished meanwhile."""
+        self.port.write(data)                           # at most a few kB: the pty takes them at once
+        sim = self.room.sim
+        end = sim.now + round((len(data) / 1920 + seconds) * PS_PER_SECOND)
+        while sim.now < end:
+            self.usb.poll()
+            self.room.run(min(end - sim.now, PS_PER_SECOND // 1000) / PS_PER_SECOND)
+        new = self.port.read(self.usb.to_pc - self.received)        # all the bridge passed on
+        self.received += len(new)
+        lines, self.unfinished = re.fullmatch(rb"(.*[\r\a])?(.*)", self.unfinished + new, re.DOTALL).groups(b"")
+        return lines
+
+    def __enter__(self) -> PcOnThePort:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.port.close()
+        self.usb.close()
+
+
+def test_the_adapter_answers_again_after_the_pc_wrote_while_it_opened_the_channel():
+    """Opening waits for the bus to be idle (1 to 3 ms here) while the USART's FIFO holds two bytes (1 ms):
+    the third overruns it (OERR). The adapter clears CREN and sets it, counts it, and refuses the spoiled command."""
+    with PcOnThePort() as pc:
+        sent = answers(pc.send(b"L\rC\r" * 30, seconds=0.1))
+        firmware = pc.room.board.firmware
+        assert firmware.usart_overruns > 0 and pc.usb.lost_to_board > 0, "the PC wrote faster than the adapter read"
+        assert len(sent) < 60 and b"\a" in sent, "commands that lost bytes are refused with BELL, the rest answered"
+        assert answers(pc.send(b"V\r", seconds=0.05)) == [b"V1013\r"]
+
+
+SLOW = ["O", "L", "C", "C\rO", "C\rL"]   # opening waits for the bus to be idle (about 1 to 3 ms here)
+COMMANDS = st.one_of(
+    st.sampled_from(SLOW),
+    st.sampled_from(["V", "N", "F", "Z0", "Z1", "", "O1", "Z", "q"] + [f"S{n}" for n in range(10)]),
+    st.builds(lambda i, data: f"t{i:03X}{len(data)}{data.hex().upper()}", st.integers(0, 0x7FF), st.binary(max_size=8)),
+    st.builds(lambda i, data: f"T{i:08X}{len(data)}{data.hex().upper()}", st.integers(0, 0x1FFFFFFF),
+              st.binary(max_size=8)),
+    st.builds(lambda i, dlc: f"r{i:03X}{dlc}", st.integers(0, 0x7FF), st.integers(0, 8)),
+    st.text("0123456789ABCDEFtTrRSOLCVNFZ\a\n \x00\xff", max_size=40),       # junk, and lines too long
+)
+# Bytes of any value, with the slow commands among them (random bytes alone rarely spell "O\r").
+BYTES = st.lists(st.one_of(st.binary(max_size=8), st.sampled_from([f"{c}\r".encode() for c in SLOW])),
+                 max_size=60).map(b"".join)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(COMMANDS, max_size=40))
+def test_every_command_is_answered_once_unless_its_bytes_were_lost_and_then_it_is_counted(commands):
+    with PcOnThePort() as pc:
+        written = b"".join(command.encode("latin-1") + b"\r" for command in commands)
+        sent = answers(pc.send(written, seconds=0.3))
+        overruns = pc.room.board.firmware.usart_overruns
+        assert (pc.usb.lost_to_board > 0) == (overruns > 0), "bytes lost exactly when the firmware saw OERR"
+        if overruns:
+            assert len(sent) <= written.count(b"\r")
+        else:
+            assert len(sent) == written.count(b"\r"), "nothing lost: one answer per command"
+        assert answers(pc.send(b"V\r", seconds=0.05)) == [b"V1013\r"]
+
+
+@settings(max_examples=25, deadline=None)
+@given(BYTES)
+def test_after_any_bytes_at_full_speed_the_adapter_answers_a_well_formed_command(junk):
+    with PcOnThePort() as pc:
+        pc.send(junk, seconds=0.3)
+        pc.send(b"\r", seconds=0.05)                  # ends whatever line the junk left open, as hosts do
+        assert answers(pc.send(b"V\r", seconds=0.05)) == [b"V1013\r"]
+        assert answers(pc.send(b"N\r", seconds=0.05)) == [b"NA023\r"]

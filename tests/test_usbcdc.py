@@ -3,18 +3,21 @@ from __future__ import annotations
 
 import logging
 import os
+import re
+import socket
 
 import pytest
 import serial
 
 from appsim.board.app023 import APP023
+from appsim.board.usbcdc import LEFT, NOBODY, UsbCdc
 from appsim.bus.wire import Bus
 from appsim.firmware import *  # noqa: F403
 from appsim.sim import PS_PER_SECOND, Simulator
-from appsim.board.usbcdc import UsbCdc
 
 LINK_19200 = (USART_TX_INT_OFF & USART_RX_INT_OFF & USART_ASYNCH_MODE & USART_EIGHT_BIT
               & USART_CONT_RX & USART_BRGH_HIGH, 129)
+LINE = re.compile(rb"\d{8}\n")       # chatter's lines
 
 
 def shouting_echo():
@@ -40,13 +43,17 @@ def chatter():
         number += 1
 
 
-def board_running(main):
-    """A board whose firmware has started (its USART is open before the PC sends anything)."""
+def bridged(main, transport="pty"):
+    """A board with its USB-CDC bridge plugged in, running `main` for 1 ms (its USART is open before the PC sends
+    anything), and a list that gets every byte its USART sends."""
     sim = Simulator()
     board = APP023(Bus(sim), "board")
+    sent = bytearray()
+    board.usb.listeners.append(lambda byte, time_ps: sent.append(byte))
+    usb = UsbCdc(board, transport=transport)
     board.run(main)
     sim.run(until=PS_PER_SECOND // 1000)
-    return sim, board
+    return sim, board, usb, sent
 
 
 def run(sim, seconds, poll=None):
@@ -58,20 +65,60 @@ def run(sim, seconds, poll=None):
         sim.run(until=min(end, sim.now + PS_PER_SECOND // 1000))
 
 
+def numbers(received: bytes) -> list[int]:
+    """chatter's line numbers in what a program received: whole lines from the first byte, the last one perhaps
+    still coming (the board was sending it when the run stopped)."""
+    assert re.fullmatch(rb"(?:\d{8}\n)*\d{0,8}", received), f"a torn line in {received!r}"
+    return [int(line) for line in LINE.findall(received)]
+
+
+class RawProgram:
+    """A PC program on the port through the kernel's own interface, never blocking (pyserial's write spins when the
+    port is full): `write` says how much the port took."""
+
+    def __init__(self, usb: UsbCdc):
+        if usb.port is not None:
+            self.fd = os.open(usb.port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+            self.socket = None
+        else:
+            self.socket = socket.socket()
+            self.socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)    # a small buffer fills soon
+            self.socket.connect(("127.0.0.1", int(usb.url.rsplit(":", 1)[1])))
+            self.socket.setblocking(False)
+
+    def write(self, data: bytes | memoryview) -> int:
+        try:
+            return os.write(self.fd, data) if self.socket is None else self.socket.send(data)
+        except BlockingIOError:
+            return 0
+
+    def read(self) -> bytes:
+        try:
+            return os.read(self.fd, 100_000) if self.socket is None else self.socket.recv(100_000)
+        except BlockingIOError:
+            return b""
+
+    def close(self) -> None:
+        if self.socket is None:
+            os.close(self.fd)
+        else:
+            self.socket.close()
+
+
 @pytest.mark.parametrize("transport", ["pty", "socket"])
 def test_what_the_pc_writes_reaches_the_firmware_and_its_answer_comes_back(transport):
-    sim, board = board_running(shouting_echo)
-    with UsbCdc(board, transport=transport) as usb, serial.serial_for_url(usb.url, timeout=1) as port:
+    sim, board, usb, _ = bridged(shouting_echo, transport)
+    with usb, serial.serial_for_url(usb.url, timeout=1) as port:
         port.write(b"hello, app023\r")
         port.flush()
         run(sim, 0.05, usb.poll)        # 14 bytes there and back at 19200 baud: 7.3 ms each way
         assert port.read(14) == b"HELLO, APP023\r"
-        assert usb.lost_bytes == 0 and board.usb.lost == 0
+        assert usb.lost_to_pc == usb.lost_to_board == 0
 
 
 def test_the_pty_is_a_serial_port_in_raw_mode_under_dev():
-    sim, board = board_running(shouting_echo)
-    with UsbCdc(board) as usb:
+    sim, board, usb, _ = bridged(shouting_echo)
+    with usb:
         assert usb.port.startswith("/dev/") and usb.url == usb.port and os.path.exists(usb.port)
         with serial.Serial(usb.port, 115200, timeout=1) as port:   # the baud rate a PC sets is ignored
             port.write(b"\r\n\x03\x7f")                # CR, LF, Ctrl-C, DEL: passed on untouched
@@ -79,48 +126,132 @@ def test_the_pty_is_a_serial_port_in_raw_mode_under_dev():
             assert port.read(4) == b"\r\n\x03\x7f"
 
 
+def resident_bytes() -> int:
+    """This process's memory in RAM now (Linux: /proc/self/statm)."""
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+@pytest.mark.parametrize("transport", ["pty", "socket"])
+def test_a_pc_writing_10_mb_and_never_reading_waits_and_memory_stays_bounded(transport):
+    """Like a USB device that NAKs, the bridge takes the PC's bytes only as fast as 19200 baud carries them
+    to the board: the PC's writes are held back, nothing piles up in the simulator. This board never reads
+    them (its USART overruns: counted); the PC never reads the board's lines (counted when lost)."""
+    sim, board, usb, sent = bridged(chatter, transport)
+    data = memoryview(bytes(range(256)) * (10 * 2**20 // 256))        # 10 MB
+    before, most = resident_bytes(), 0
+    with usb:
+        pc = RawProgram(usb)
+        written = 0
+        for ms in range(15_000):                                      # 15 s of simulated time
+            written += pc.write(data[written:written + 65536])
+            usb.poll()
+            sim.run(until=sim.now + PS_PER_SECOND // 1000)
+            if ms % 500 == 0:
+                most = max(most, resident_bytes())
+        pc.close()
+    assert most - before < 10 * 2**20, f"the simulator's memory grew by {(most - before) / 2**20:.1f} MB"
+    assert written < len(data) // 2, f"the PC wrote {written} bytes: its writes were not held back"
+    assert usb.to_board > 15 * 1800 and usb.lost_to_board > usb.to_board - 100, (
+        "the bridge passed what 19200 baud carries, and the board's USART, never read, lost nearly all of it")
+    assert usb.to_pc + usb.lost_to_pc == len(sent), "every byte from the board reached the PC or was counted"
+
+
 def test_bytes_the_pc_does_not_read_are_lost_counted_and_reported_never_silently(caplog):
-    sim, board = board_running(chatter)
-    sent = bytearray()
-    board.usb.listeners.append(lambda byte, time_ps: sent.append(byte))
-    with caplog.at_level(logging.WARNING, logger="appsim.board.usbcdc"), UsbCdc(board) as usb, \
+    sim, board, usb, sent = bridged(chatter)
+    with caplog.at_level(logging.WARNING, logger="appsim.board.usbcdc"), usb, \
             serial.Serial(usb.port, timeout=0.2) as port:
         run(sim, 12.0)                   # 23 kB at 19200 baud, the PC busy elsewhere: the kernel keeps ~20 kB
         kept = port.read(len(sent))
-    assert usb.lost_bytes > 0 and len(kept) + usb.lost_bytes == len(sent)
-    assert bytes(sent).startswith(kept), "what the PC gets is the oldest bytes, in order, with no hole"
+    assert usb.lost_to_pc > 0 and len(kept) == usb.to_pc and usb.to_pc + usb.lost_to_pc == len(sent)
+    before = usb.why_lost[NOBODY]                  # sent before the PC opened the port
+    assert kept == bytes(sent[before:before + len(kept)]), "then the oldest bytes, in order, with no hole"
     assert "not reading" in caplog.text and "lost" in caplog.text
 
 
-def test_on_the_socket_bytes_are_lost_while_no_program_is_connected(caplog):
-    sim, board = board_running(chatter)
-    sent = []
-    board.usb.listeners.append(lambda byte, time_ps: sent.append(byte))
-    with caplog.at_level(logging.WARNING, logger="appsim.board.usbcdc"), UsbCdc(board, transport="socket") as usb:
-        run(sim, 0.1)
-        assert usb.lost_bytes == len(sent) > 0
-        assert "no program is connected" in caplog.text
+@pytest.mark.parametrize("transport", ["pty", "socket"])
+def test_while_no_program_has_the_port_open_bytes_are_lost_and_a_program_that_comes_gets_whole_lines(transport):
+    sim, board, usb, sent = bridged(chatter, transport)
+    with usb:
+        run(sim, 0.1, usb.poll)
+        assert usb.why_lost[NOBODY] == len(sent) > 0 and usb.to_pc == 0
         with serial.serial_for_url(usb.url, timeout=1) as port:
-            start = len(sent)
-            run(sim, 0.05)
-            assert port.read(len(sent) - start) == bytes(sent[start:]) and usb.lost_bytes == start
-        run(sim, 0.01, usb.poll)         # the program left: the bridge notices, later bytes are lost again
-        before = usb.lost_bytes
-        run(sim, 0.01)
-        assert usb.lost_bytes > before
+            run(sim, 0.1, usb.poll)
+            got = numbers(port.read(usb.to_pc))                       # all the bridge passed to it
+            assert got and got == list(range(got[0], got[-1] + 1)), "whole lines, none missing"
+
+
+def test_two_programs_in_turn_on_the_socket_never_tear_a_line_nor_hand_over_its_tail():
+    """One program at a time: the second waits while the first is served. When the first leaves in the middle
+    of a line, the rest of that line is for nobody; the second gets whole lines the board began after."""
+    sim, board, usb, sent = bridged(chatter, "socket")
+    with usb:
+        first = serial.serial_for_url(usb.url, timeout=0)
+        second = serial.serial_for_url(usb.url, timeout=0)            # connected, waiting its turn
+        run(sim, 0.1, usb.poll)
+        seen = numbers(first.read(10_000))
+        assert seen and second.read(10_000) == b"", "the second program gets nothing while the first is served"
+        while sent.endswith(b"\n"):                                   # on until the board is in a line
+            run(sim, 0.001, usb.poll)
+        unfinished = sent.count(b"\n")                                # its number
+        first.close()
+        run(sim, 0.2, usb.poll)
+        got = numbers(second.read(10_000))
+        second.close()
+    assert got and got[0] > unfinished and got == list(range(got[0], got[-1] + 1))
+    assert usb.why_lost[LEFT] > 0, "the tail of the first program's line is counted as lost"
+
+
+def test_an_answer_to_a_program_that_left_is_not_handed_to_the_next():
+    sim, board, usb, sent = bridged(shouting_echo, "socket")
+    with usb:
+        with serial.serial_for_url(usb.url) as first:                 # writes and leaves without waiting
+            first.write(b"first\r")
+        with serial.serial_for_url(usb.url, timeout=0) as second:
+            second.write(b"second\r")
+            run(sim, 0.2, usb.poll)
+            assert second.read(100) == b"SECOND\r"
+    assert bytes(sent) == b"FIRST\rSECOND\r", "what the first wrote reached the board"
+    assert usb.why_lost[LEFT] == 6, "its answer went to no program, and is counted"
+
+
+def test_on_the_pty_a_program_never_gets_what_the_last_one_left_unread():
+    sim, board, usb, sent = bridged(chatter)
+    starts = []                                                        # (time, number) of each line the board began
+    board.usb.listeners.append(lambda byte, time_ps: starts.append((time_ps, len(starts))) if byte == 0x0A else None)
+    with usb:
+        with serial.Serial(usb.port, timeout=0) as first:
+            run(sim, 0.1, usb.poll)
+            first.read(20)                                             # reads a little, leaves the rest unread
+        run(sim, 0.1, usb.poll)
+        opened = sim.now
+        second = RawProgram(usb)                                       # (pyserial would flush the port on opening)
+        run(sim, 0.1, usb.poll)
+        got = numbers(second.read())
+        second.close()
+    first_new_line = next(number + 1 for time_ps, number in starts if time_ps >= opened)
+    assert got and got[0] >= first_new_line, "only lines the board began after the second program opened the port"
+
+
+def test_what_a_program_writes_just_before_it_closes_the_port_still_reaches_the_board():
+    sim, board, usb, sent = bridged(shouting_echo)
+    with usb:
+        with serial.Serial(usb.port) as port:                          # echo -e 'abc\r' > /dev/pts/N
+            port.write(b"abc\r")
+        run(sim, 0.05, usb.poll)
+    assert bytes(sent) == b"ABC\r" and usb.why_lost[LEFT] == 4, "the answer had no program to go to"
 
 
 def test_close_unplugs_the_bridge():
-    sim, board = board_running(chatter)
-    usb = UsbCdc(board)
-    port = usb.port
+    sim, board, usb, sent = bridged(chatter)
     usb.close()
+    before = len(sent), usb.to_pc, usb.lost_to_pc
     run(sim, 0.01)
-    assert not os.path.exists(port) and usb.lost_bytes == 0 and board.usb.listeners == []
+    assert not os.path.exists(usb.port) and len(board.usb.listeners) == 1, "only the test's own listener is left"
+    assert len(sent) > before[0] and (usb.to_pc, usb.lost_to_pc) == before[1:], "the board's bytes go nowhere"
     usb.close()                          # twice is harmless
 
 
 def test_a_transport_that_does_not_exist_is_refused_with_the_choices():
-    sim, board = board_running(chatter)
     with pytest.raises(ValueError, match="'pty'.*'socket'"):
-        UsbCdc(board, transport="usb")
+        UsbCdc(APP023(Bus(Simulator())), transport="usb")

@@ -101,7 +101,7 @@ def parse_command(line: bytes | str) -> Command:
     if head in "tTrR":
         return Transmit(_parse_frame(head, rest))
     if head == "S":
-        if len(rest) != 1 or not rest.isdigit() or int(rest) not in BIT_RATES:
+        if len(rest) != 1 or rest not in string.digits or int(rest) not in BIT_RATES:
             raise SlcanError(f"{text!r}: S takes one digit 0..8 "
                              f"({', '.join(f'S{c} = {r} bit/s' for c, r in BIT_RATES.items())})")
         return SetBitRate(int(rest))
@@ -127,7 +127,7 @@ def _parse_frame(kind: str, rest: str) -> CanFrame:
         raise SlcanError(f"{what} is too short: {kind} needs {id_digits} hex digits of identifier and a DLC "
                          f"digit (e.g. {example})")
     hex_part = rest[:id_digits] + rest[id_digits + 1:]
-    if not all(c in string.hexdigits for c in hex_part) or not rest[id_digits].isdigit():
+    if not all(c in string.hexdigits for c in hex_part) or rest[id_digits] not in string.digits:
         raise SlcanError(f"{what}: identifier and data are hex digits, the DLC one decimal digit "
                          f"(e.g. {example})")
     can_id, dlc = int(rest[:id_digits], 16), int(rest[id_digits])

@@ -63,6 +63,10 @@ class SerialEnd:
     def bit_ps(self) -> int:
         return round(PS_PER_SECOND / self.baud)
 
+    def frame_ps(self) -> int:
+        """One 8N1 frame on the line: start bit, 8 data bits, stop bit."""
+        return 10 * self.bit_ps()
+
     def write(self, data: bytes) -> None:
         """Send `data` from the PC to the board's RX pin, one 8N1 frame after the other."""
         if not isinstance(data, (bytes, bytearray)):
@@ -71,7 +75,7 @@ class SerialEnd:
         start = max(sim.time(), self._line_free_ps)
         for byte in data:
             sim.call_at(start, lambda byte=byte: self.usart.frame_starts(self, byte))
-            start += 10 * self.bit_ps()
+            start += self.frame_ps()
         self._line_free_ps = start
 
     def __repr__(self) -> str:
