@@ -26,8 +26,8 @@ from appsim.sim import PS_PER_SECOND
 log = logging.getLogger(__name__)
 
 QUEUE_FRAMES = 64           # frames from outside waiting for the simulated bus: 70 ms of 8-byte frames at 125 kbit/s
-READ_PER_POLL = 64          # frames read per poll at most, so a flood cannot stall the simulation (at 1 ms slices,
-                            # 64,000 frames/s: 7 times what a 1 Mbit/s bus carries); the rest waits in the kernel
+READ_PER_POLL = 16          # frames read per poll at most, so a flood cannot stall the simulation (at 1 ms slices,
+                            # 16,000 frames/s: twice what a 1 Mbit/s bus carries); the rest waits in the kernel
 WARN_EVERY_PS = PS_PER_SECOND   # drops are reported as they happen, at most once a simulated second
 REOPEN_EVERY_S = 1.0        # an interface that is gone is opened again this often (wall seconds) until it is back
 KINDS_KEPT = 16             # reasons told apart in one tally; later new ones are counted together
