@@ -13,6 +13,7 @@ import operator
 import os
 import socket
 import struct
+import sys
 import time
 from collections import Counter
 from typing import Any
@@ -36,12 +37,11 @@ OTHER_KINDS = f"other reasons (beyond the first {KINDS_KEPT} kinds; the log name
 SO_MEMINFO = 55             # Linux <asm-generic/socket.h>: a socket's memory counters (Linux 4.6+) ...
 SK_MEMINFO = struct.Struct("9I")    # ... SK_MEMINFO_RMEM_ALLOC .. SK_MEMINFO_DROPS: the last counts dropped packets
 
-GONE = (errno.ENODEV, errno.ENXIO)
+GONE = (errno.ENODEV, errno.ENXIO)     # what an unplugged adapter or a deleted vcan answers
 MEANINGS = {
     errno.ENETDOWN: "the interface is down: frames to and from it are lost until it is up again",
-    errno.ENODEV: "the interface is gone (adapter unplugged, vcan deleted)",
-    errno.ENXIO: "the interface is gone (adapter unplugged, vcan deleted)",
     errno.ENOBUFS: "the interface's transmit queue is full: that bus is saturated, or nobody there ACKs",
+    **dict.fromkeys(GONE, "the interface is gone (adapter unplugged, vcan deleted)"),
 }
 
 ERROR_FRAME = "error frame reported by the outside bus (the ECAN sees only its own wire's errors)"
@@ -113,6 +113,8 @@ def kernel_socket(outside: can.BusABC) -> socket.socket | None:
 
     On a CAN socket it also turns on CAN FD frames (python-can's fd=True): the kernel would hide them otherwise.
     """
+    if sys.platform != "linux":
+        return None
     try:
         sock = socket.socket(fileno=os.dup(outside.fileno()))
     except (NotImplementedError, OSError, ValueError, TypeError):
@@ -121,7 +123,7 @@ def kernel_socket(outside: can.BusABC) -> socket.socket | None:
         if sock.family == socket.AF_CAN:
             sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FD_FRAMES, 1)
         socket_drops(sock)
-    except OSError:     # not Linux 4.6+, or not a raw CAN socket
+    except (OSError, struct.error):     # Linux before 4.6, or not a raw CAN socket
         sock.close()
         return None
     return sock
