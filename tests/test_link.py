@@ -8,8 +8,10 @@ import can
 import pytest
 
 from appsim.firmware.an738 import *  # noqa: F403
-from appsim.bus.link import BusLink
+from appsim.bus.link import QUEUE_FRAMES, BusLink
 from appsim.bus.realtime import WallClock
+from appsim.sim import PS_PER_SECOND
+from appsim.workshop.classroom import Classroom
 
 _channels = itertools.count()
 
@@ -125,3 +127,50 @@ def test_wall_clock_pacing_with_an_outside_peer(world, channel):
         elapsed = time.perf_counter() - started
         assert [bytes(m.data) for m in replies] == [b"\x01\x02\x03"] + [bytes([0x88, k]) for k in range(1, 5)]
         print(f"0.2 s simulated took {elapsed:.3f} s wall; largest lag {clock.max_lag_s * 1e3:.2f} ms")
+
+
+@pytest.mark.parametrize("message, reason", [
+    (can.Message(arbitration_id=-5, data=b"\x01", is_extended_id=False, check=False), "negative identifier"),
+    (can.Message(arbitration_id=0x123, data=b"\x01", dlc=16, is_extended_id=False, check=False), "DLC outside 0..15"),
+    (can.Message(arbitration_id=0x123, data=b"\x01", dlc=3, is_extended_id=False, check=False), "fewer data bytes"),
+])
+def test_invalid_fields_from_a_peer_are_rejected_with_the_reason(world, channel, message, reason):
+    with can.Bus(interface="virtual", channel=channel) as peer, \
+            BusLink(world.bus, interface="virtual", channel=channel) as link:
+        peer.send(message)
+        link.poll()
+        world.run(0.01)
+    assert (link.received, link.delivered, world.bus.trace) == (1, 0, [])
+    assert f"rejected 1 x {reason}" in link.report()
+
+
+def test_a_burst_faster_than_the_bus_fills_a_bounded_queue_drops_are_told_as_they_happen(world, channel, caplog):
+    """1,500 frames/s from outside for a second into the 125 kbit/s bus, which carries about 1,000 of them: the
+    queue stays at its size, so an RTR sent as the burst ends waits behind at most that many frames."""
+    classroom = Classroom(world.bus, 6, seed=3, monitor=False)
+    burst = can.Message(arbitration_id=0x7F0, data=bytes(8), is_extended_id=False)     # lowest priority
+    poll = can.Message(arbitration_id=0x130, is_remote_frame=True, is_extended_id=False)
+    with can.Bus(interface="virtual", channel=channel) as peer, \
+            BusLink(world.bus, interface="virtual", channel=channel) as link:
+        for ms in range(1200):
+            for _ in range(1 + ms % 2 if ms < 1000 else 0):
+                peer.send(burst)
+            if ms == 1002:                              # a frame has left the full queue since the burst ended
+                assert any("faster than the simulated 125 kbit/s bus" in r.message for r in caplog.records), \
+                    "drops are told while the run goes on, not at the end"
+                peer.send(poll)
+                asked_ps = world.sim.now
+            link.poll()
+            assert link.queued <= QUEUE_FRAMES
+            world.run(0.001)
+    asked = next(e for e in world.bus.frames() if e.frame.remote and e.sender == "outside")
+    answer = next(e for e in world.bus.frames() if e.start_ps > asked.start_ps and e.frame.can_id == 0x130)
+    assert asked.start_ps - asked_ps < QUEUE_FRAMES * 1.1e-3 * PS_PER_SECOND, "it waited behind a queue's worth"
+    assert answer.sender == "station4" and classroom.station(4).mcu.process.failure is None
+    assert link.received == 1501 == link.delivered + link.dropped + link.queued and link.dropped > 400
+    assert f"{link.received} received = {link.delivered} delivered + 0 rejected + {link.dropped} dropped" in link.report()
+
+
+def test_a_queue_of_no_frames_is_refused_with_what_it_means(world):
+    with pytest.raises(ValueError, match="how many frames from outside may wait"):
+        BusLink(world.bus, can.Bus(interface="virtual", channel="appsim-refused"), queue_frames=0)

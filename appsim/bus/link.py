@@ -1,21 +1,53 @@
-"""A link from the simulated bus to any python-can bus: a Linux vcan, python-can's virtual or
-udp_multicast bus, or a real adapter. The outside world is one more node on the simulated bus.
+"""A link from the simulated bus to any python-can bus (a Linux vcan, python-can's virtual or udp_multicast bus, a
+real adapter): the outside world is one more node on the simulated bus, and every frame it sends is accounted for.
 
-Frames that go through on the simulated bus are sent outside; frames from outside contend for the
-simulated bus and are ACKed like any frame. Frames the ECAN cannot hold are counted, never delivered.
+Frames that go through on the simulated bus are sent outside. Frames from outside wait in a bounded queue and
+contend for the simulated bus; what the ECAN cannot hold is rejected with the reason, what finds the queue full is
+dropped, and errors of the outside bus are counted, never fatal: `BusLink.report()` adds it all up.
 """
 from __future__ import annotations
 
+import errno
 import logging
+import operator
+import os
+import socket
+import struct
+import sys
+import time
 from collections import Counter
 from typing import Any
 
 import can
 
 from appsim.bus.wire import Bus
-from appsim.can.frame import CanFrame
+from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
+from appsim.sim import PS_PER_SECOND
 
 log = logging.getLogger(__name__)
+
+QUEUE_FRAMES = 64           # frames from outside waiting for the simulated bus: 70 ms of 8-byte frames at 125 kbit/s
+READ_PER_POLL = 16          # frames read per poll at most, so a flood cannot stall the simulation (at 1 ms slices,
+                            # 16,000 frames/s: twice what a 1 Mbit/s bus carries); the rest waits in the kernel
+WARN_EVERY_PS = PS_PER_SECOND   # drops are reported as they happen, at most once a simulated second
+REOPEN_EVERY_S = 1.0        # an interface that is gone is opened again this often (wall seconds) until it is back
+KINDS_KEPT = 16             # reasons told apart in one tally; later new ones are counted together
+OTHER_KINDS = f"other reasons (beyond the first {KINDS_KEPT} kinds; the log names each the first time)"
+
+SO_MEMINFO = 55             # Linux <asm-generic/socket.h>: a socket's memory counters (Linux 4.6+) ...
+SK_MEMINFO = struct.Struct("9I")    # ... SK_MEMINFO_RMEM_ALLOC .. SK_MEMINFO_DROPS: the last counts dropped packets
+
+GONE = (errno.ENODEV, errno.ENXIO)     # what an unplugged adapter or a deleted vcan answers
+MEANINGS = {
+    errno.ENETDOWN: "the interface is down: frames to and from it are lost until it is up again",
+    errno.ENOBUFS: "the interface's transmit queue is full: that bus is saturated, or nobody there ACKs",
+    **dict.fromkeys(GONE, "the interface is gone (adapter unplugged, vcan deleted)"),
+}
+
+ERROR_FRAME = "error frame reported by the outside bus (the ECAN sees only its own wire's errors)"
+FD_FRAME = "CAN FD frame (the ECAN is classic CAN 2.0B: it cannot receive FD frames)"
+BAD_FLAG = "a flag (is_extended_id, is_remote_frame, is_error_frame, is_fd) that is neither True nor False"
+DLC_ABOVE_8 = "DLC above 8 (RXBnDLC codes 1001..1111 are reserved: at most 8 data bytes)"
 
 
 def to_message(frame: CanFrame) -> can.Message:
@@ -23,22 +55,50 @@ def to_message(frame: CanFrame) -> can.Message:
                        is_extended_id=frame.extended, is_remote_frame=frame.remote)
 
 
-def rejection(message: can.Message) -> str | None:
-    """Why the PIC18F8680's ECAN could not hold this frame from outside, or None if it can."""
-    if message.is_error_frame:
-        return "error frame reported by the outside bus (the ECAN sees only its own wire's errors)"
-    if message.is_fd:
-        return "CAN FD frame (the ECAN is classic CAN 2.0B: it cannot receive FD frames)"
-    if message.dlc > 8 or len(message.data) > 8:
-        return "DLC above 8 (RXBnDLC codes 1001..1111 are reserved: at most 8 data bytes)"
-    if message.arbitration_id >= (1 << (29 if message.is_extended_id else 11)):
-        width = "29-bit extended" if message.is_extended_id else "11-bit standard"
-        return f"identifier too wide for a {width} frame"
-    return None
+def _integer(value: object) -> int | None:
+    """`value` as an int if it is an integer (numpy's included), else None."""
+    try:
+        return operator.index(value)
+    except Exception:       # noqa: BLE001 - whatever a hostile object raises, it is not an integer
+        return None
 
 
-def _key(frame: CanFrame) -> tuple:
-    return frame.can_id, frame.extended, frame.remote, frame.dlc, frame.data
+def frame_or_rejection(message: object) -> CanFrame | str:
+    """The frame the PIC18F8680's ECAN takes from `message`, or why it cannot take it.
+
+    `message` is whatever an outside bus handed over: every field is checked, none is trusted.
+    """
+    if not isinstance(message, can.Message):
+        return "not a python-can Message"
+    flags = [_integer(getattr(message, name))
+             for name in ("is_error_frame", "is_fd", "is_extended_id", "is_remote_frame")]
+    if any(flag not in (0, 1) for flag in flags):
+        return BAD_FLAG
+    error, fd, extended, remote = map(bool, flags)
+    if error:
+        return ERROR_FRAME
+    if fd:
+        return FD_FRAME
+    ident, dlc, data = _integer(message.arbitration_id), _integer(message.dlc), message.data
+    if ident is None:
+        return "identifier that is not a number"
+    if ident < 0:
+        return "negative identifier"
+    if ident > (EXTENDED_ID_MAX if extended else STANDARD_ID_MAX):
+        return f"identifier too wide for a {'29-bit extended' if extended else '11-bit standard'} frame"
+    if dlc is None:
+        return "DLC that is not a number"
+    if not 0 <= dlc <= 15:
+        return "DLC outside 0..15 (it is a 4-bit field)"
+    if dlc > 8:
+        return DLC_ABOVE_8
+    if not isinstance(data, (bytes, bytearray)):
+        return "data that is not bytes"
+    if remote:
+        return "remote frame (RTR) with data" if data else CanFrame(ident, extended=extended, remote=True, dlc=dlc)
+    if len(data) != dlc:
+        return f"{'fewer' if len(data) < dlc else 'more'} data bytes than its DLC says"
+    return CanFrame(ident, bytes(data), extended=extended)
 
 
 def echoes_own_frames(outside: can.BusABC) -> bool:
@@ -48,67 +108,220 @@ def echoes_own_frames(outside: can.BusABC) -> bool:
     return isinstance(outside, UdpMulticastBus)
 
 
-def to_frame(message: can.Message) -> CanFrame:
-    if message.is_remote_frame:
-        return CanFrame(message.arbitration_id, extended=message.is_extended_id, remote=True, dlc=message.dlc)
-    return CanFrame(message.arbitration_id, bytes(message.data[:message.dlc]), extended=message.is_extended_id)
+def kernel_socket(outside: can.BusABC) -> socket.socket | None:
+    """A handle on the outside bus's own socket, where it has one whose drops Linux counts (socketcan, udp_multicast).
+
+    On a CAN socket it also turns on CAN FD frames (python-can's fd=True): the kernel would hide them otherwise.
+    """
+    if sys.platform != "linux":
+        return None
+    try:
+        sock = socket.socket(fileno=os.dup(outside.fileno()))
+    except (NotImplementedError, OSError, ValueError, TypeError):
+        return None     # no socket (virtual, most adapters' drivers), or not a socket (a serial port)
+    try:
+        if sock.family == socket.AF_CAN:
+            sock.setsockopt(socket.SOL_CAN_RAW, socket.CAN_RAW_FD_FRAMES, 1)
+        socket_drops(sock)
+    except (OSError, struct.error):     # Linux before 4.6, or not a raw CAN socket
+        sock.close()
+        return None
+    return sock
+
+
+def socket_drops(sock: socket.socket) -> int:
+    """Packets the kernel dropped because the socket's receive buffer was full, since it was opened."""
+    return SK_MEMINFO.unpack(sock.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, SK_MEMINFO.size))[-1]
 
 
 class BusLink:
     """Joins `bus` to a python-can bus: pass a `can.BusABC`, or python-can's own settings
     (`interface=..., channel=...`, else `~/.canrc` and the CAN_INTERFACE/CAN_CHANNEL environment).
 
-    Call `poll()` often (a `WallClock` does, between slices) to bring in what arrived outside.
+    Call `poll()` often (a `WallClock` does, between slices) to bring in what arrived outside. Nothing
+    from outside is lost uncounted: received = delivered + rejected + dropped + queued, and where the
+    kernel drops frames before the link reads them (socketcan, udp_multicast) those are counted too.
+    Errors of the outside bus are counted and reported once each; an interface that is gone (unplugged,
+    vcan deleted) is opened again when it is back, if the link opened it.
     """
 
-    def __init__(self, bus: Bus, outside: can.BusABC | None = None, *, name: str = "outside", **config: Any):
+    def __init__(self, bus: Bus, outside: can.BusABC | None = None, *, name: str = "outside",
+                 queue_frames: int = QUEUE_FRAMES, **config: Any):
+        if not isinstance(queue_frames, int) or queue_frames < 1:
+            raise ValueError(f"queue_frames is how many frames from outside may wait for the simulated bus, "
+                             f"at least 1; got {queue_frames!r}")
         self.bus = bus
         self.name = name
+        self.queue_frames = queue_frames
+        self._config = config if outside is None else None     # how to open it again, if the link opened it
         self.outside = outside if outside is not None else can.Bus(**config)
         self.sent = 0
-        self.received = 0
+        self.received = 0           # frames from outside (not counting udp_multicast's echoes of our own)
+        self.dropped = 0            # ... that found the queue full
+        self.echoes = 0
+        self.reopened = 0
         self.rejected: Counter[str] = Counter()
         self.send_failures: Counter[str] = Counter()
-        self._echoes: Counter[tuple] | None = Counter() if echoes_own_frames(self.outside) else None
-        bus.attach_outside(self)
+        self.receive_errors: Counter[str] = Counter()
+        self._echoes: Counter[CanFrame] | None = Counter() if echoes_own_frames(self.outside) else None
+        self._port = bus.attach_outside(self)
+        self._reopen_at: float | None = None
+        self._kernel_closed = 0     # drops counted on sockets closed since (an interface opened again, the link closed)
+        self._watch_kernel()
+        self._lost_told, self._told_at_ps = (0, 0), bus.sim.now     # drops told so far (queue, kernel), and when
 
+    # ------------------------------------------------------------------ counts
+    @property
+    def delivered(self) -> int:
+        """Frames from outside that went through on the simulated bus."""
+        return self._port.delivered
+
+    @property
+    def queued(self) -> int:
+        """Frames from outside still waiting for the simulated bus (at most `queue_frames`)."""
+        return len(self._port.queue)
+
+    @property
+    def kernel_dropped(self) -> int | None:
+        """Frames the kernel dropped before the link could read them (its socket's buffer was full);
+        None if this outside bus does not say (python-can's virtual bus, most adapters)."""
+        if not self._kernel_known:
+            return None
+        return self._kernel_closed + self._kernel_count() - self._kernel_base
+
+    def _kernel_count(self) -> int:
+        return 0 if self._kernel_socket is None else socket_drops(self._kernel_socket)
+
+    def _watch_kernel(self) -> None:
+        self._kernel_socket = kernel_socket(self.outside)
+        self._kernel_known = self._kernel_socket is not None
+        self._kernel_base = self._kernel_count()
+
+    # ------------------------------------------------------------------ to and from the outside bus
     def frame_from_simulation(self, frame: CanFrame) -> None:
         try:
-            self.outside.send(to_message(frame))
-            self.sent += 1
-            if self._echoes is not None:
-                self._echoes[_key(frame)] += 1
-        except can.CanError as error:     # e.g. a full transmit queue on the adapter: counted, reported
-            self._count(self.send_failures, f"could not send {frame} outside: {error}")
+            self.outside.send(to_message(frame), timeout=0)     # a bus that cannot take it now must not stall us
+        except Exception as error:      # noqa: BLE001 - whatever the outside bus raises is counted, never fatal
+            self._failed(self.send_failures, "could not send", error)
+            return
+        self.sent += 1
+        if self._echoes is not None:
+            self._echoes[frame] += 1
 
     def poll(self) -> None:
-        """Every frame that arrived outside since the last poll contends for the simulated bus now."""
-        while (message := self.outside.recv(timeout=0)) is not None:
-            why = rejection(message)
-            if why is not None:
-                self._count(self.rejected, why)
-                continue
-            frame = to_frame(message)
-            if self._echoes is not None and self._echoes[_key(frame)]:
-                self._echoes[_key(frame)] -= 1
-                continue
-            self.received += 1
+        """Bring in what arrived outside since the last poll (at most READ_PER_POLL frames): each frame
+        contends for the simulated bus now, or is counted as rejected or dropped. Never raises."""
+        if self._reopen_at is not None and time.monotonic() >= self._reopen_at:
+            self._reopen()
+        for _ in range(READ_PER_POLL):
+            try:
+                message = self.outside.recv(timeout=0)
+            except Exception as error:  # noqa: BLE001 - whatever the outside bus raises is counted, never fatal
+                self._failed(self.receive_errors, "could not receive", error)
+                break
+            if message is None:
+                break
+            self._take(message)
+        self._warn_of_drops()
+
+    def _take(self, message: object) -> None:
+        frame = frame_or_rejection(message)
+        if isinstance(frame, CanFrame) and self._is_echo(frame):
+            return
+        self.received += 1
+        if isinstance(frame, str):
+            self._tally(self.rejected, frame)
+        elif len(self._port.queue) >= self.queue_frames:
+            self.dropped += 1
+        else:
             self.bus.from_outside(self, frame)
 
-    def _count(self, counter: Counter[str], what: str) -> None:
+    def _is_echo(self, frame: CanFrame) -> bool:
+        if self._echoes is None or not self._echoes[frame]:
+            return False
+        self._echoes[frame] -= 1
+        if not self._echoes[frame]:
+            del self._echoes[frame]
+        self.echoes += 1
+        return True
+
+    # ------------------------------------------------------------------ trouble, told as it happens
+    def _tally(self, counter: Counter[str], what: str) -> None:
+        """Count `what`; the first of its kind is told at once."""
+        if what not in counter and len(counter) >= KINDS_KEPT:
+            what = OTHER_KINDS
         if not counter[what]:
             log.warning("%s: %s (counted in the link report)", self.name, what)
         counter[what] += 1
 
+    def _failed(self, counter: Counter[str], doing: str, error: Exception) -> None:
+        code = _integer(getattr(error, "error_code", None) or getattr(error, "errno", None))
+        meaning = f": {MEANINGS[code]}" if code in MEANINGS else ""
+        self._tally(counter, f"{doing}: {type(error).__name__}: {error}{meaning}")
+        if code in GONE and self._config is not None and self._reopen_at is None:
+            log.warning("%s: opening %s again every %g s until it is back", self.name,
+                        self.outside.channel_info, REOPEN_EVERY_S)
+            self._reopen_at = time.monotonic() + REOPEN_EVERY_S
+
+    def _reopen(self) -> None:
+        try:
+            outside = can.Bus(**self._config)
+        except Exception:   # noqa: BLE001 - still gone (python-can says why): try again later
+            self._reopen_at = time.monotonic() + REOPEN_EVERY_S
+            return
+        self._close_outside()
+        self.outside, self._reopen_at = outside, None
+        self._watch_kernel()
+        self.reopened += 1
+        log.warning("%s: %s is back, opened again", self.name, outside.channel_info)
+
+    def _warn_of_drops(self) -> None:
+        """Frames lost to a full queue or a full kernel buffer are told as they happen: a line a second at most."""
+        now = self.bus.sim.now
+        dropped, kernel = self.dropped, self.kernel_dropped or 0
+        if (dropped, kernel) == self._lost_told or (any(self._lost_told) and now - self._told_at_ps < WARN_EVERY_PS):
+            return
+        log.warning("%s: outside sends faster than the simulated %d kbit/s bus carries: in the last %.1f s %d frames "
+                    "found the link's queue of %d frames full and %d the kernel's socket buffer (%d lost in all)",
+                    self.name, self.bus.bit_rate // 1000, (now - self._told_at_ps) / PS_PER_SECOND,
+                    dropped - self._lost_told[0], self.queue_frames, kernel - self._lost_told[1], dropped + kernel)
+        self._lost_told, self._told_at_ps = (dropped, kernel), now
+
+    # ------------------------------------------------------------------ the account
     def report(self) -> str:
-        lines = [f"link {self.name} ({self.outside.channel_info}): "
-                 f"{self.sent} frames sent outside, {self.received} received"]
+        """What crossed the link, every frame from outside accounted for."""
+        lines = [f"link {self.name} ({self.outside.channel_info}): {self.sent} frames sent outside, "
+                 f"{self.received} received = {self.delivered} delivered + {sum(self.rejected.values())} rejected "
+                 f"+ {self.dropped} dropped + {self.queued} still queued"]
         lines += [f"  rejected {count} x {why}" for why, count in self.rejected.items()]
-        lines += [f"  failed {count} x {why}" for why, count in self.send_failures.items()]
+        if self.dropped:
+            lines.append(f"  dropped {self.dropped}: the link's queue of {self.queue_frames} frames was full (outside "
+                         f"sends faster than the simulated {self.bus.bit_rate // 1000} kbit/s bus carries)")
+        kernel = self.kernel_dropped
+        if kernel is None:
+            lines.append("  (this outside bus does not say whether it dropped frames before the link read them)")
+        elif kernel:
+            lines.append(f"  the kernel dropped {kernel} more before the link could read them "
+                         "(the socket's receive buffer was full)")
+        if self.echoes:
+            lines.append(f"  {self.echoes} of the link's own frames came back (multicast loopback) and were skipped")
+        lines += [f"  {count} x {what}" for what, count in (self.receive_errors + self.send_failures).items()]
+        if self.reopened:
+            lines.append(f"  the outside bus was gone and opened again {self.reopened} time(s)")
         return "\n".join(lines)
 
+    def _close_outside(self) -> None:
+        if self._kernel_socket is not None:
+            self._kernel_closed += socket_drops(self._kernel_socket) - self._kernel_base
+            self._kernel_socket.close()
+            self._kernel_socket, self._kernel_base = None, 0
+        try:
+            self.outside.shutdown()
+        except Exception as error:      # noqa: BLE001 - closing a bus that failed must not end the run
+            log.warning("%s: closing %s: %s", self.name, self.outside.channel_info, error)
+
     def close(self) -> None:
-        self.outside.shutdown()
+        self._close_outside()
 
     def __enter__(self) -> BusLink:
         return self

@@ -155,7 +155,8 @@ class _LinkPort(_Port):
     and sends the frames that arrive from outside, retrying them as any node would."""
 
     outside: Outside
-    queue: deque[CanFrame] = field(default_factory=deque)
+    queue: deque[CanFrame] = field(default_factory=deque)     # the link keeps it bounded
+    delivered: int = 0                                         # frames from outside that went through
     rate_ok: bool = True
     suspend_until: int = 0
     mode: Mode = Mode.NORMAL
@@ -178,6 +179,7 @@ class _LinkPort(_Port):
 
     def succeeded(self, buffer: str) -> None:
         self.queue.popleft()
+        self.delivered += 1
 
     def receive(self, frame: CanFrame) -> str:
         self.outside.frame_from_simulation(frame)
@@ -230,9 +232,12 @@ class Bus:
         """The simulated boards on this bus, in the order they were attached."""
         return [port.mcu for port in self.ports if isinstance(port, _BoardPort)]
 
-    def attach_outside(self, outside: Outside) -> None:
-        """Join the rest of a real bus (see `appsim.bus.link`): it ACKs every frame and sends its own."""
-        self.ports.append(_LinkPort(outside))
+    def attach_outside(self, outside: Outside) -> _LinkPort:
+        """Join the rest of a real bus (see `appsim.bus.link`): it ACKs every frame and sends its own.
+        The port returned tells the link how many of its frames wait (`queue`) and went through (`delivered`)."""
+        port = _LinkPort(outside)
+        self.ports.append(port)
+        return port
 
     def from_outside(self, outside: Outside, frame: CanFrame) -> None:
         """A frame arrived from outside at the simulated present: it contends for the bus."""
