@@ -14,6 +14,7 @@ from types import ModuleType
 from appsim.errors import FirmwareError
 
 _loads = itertools.count()
+TRACEBACK_FRAMES = 50           # of a failing firmware, the innermost ones a report looks at (a recursion has thousands)
 
 
 def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
@@ -109,7 +110,7 @@ def _apply_defines(tree: ast.Module, defines: Mapping[str, int], path: Path) -> 
 def crash_message(error: BaseException, filename: str | None) -> str:
     """What a student reads when main() raised `error`: the line of their own file it came from, the error as
     Python words it (with its "Did you mean ...?"), and what that means for the board."""
-    report = traceback.TracebackException.from_exception(error)
+    report = traceback.TracebackException.from_exception(error, limit=-TRACEBACK_FRAMES)
     mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
     what = list(report.format_exception_only())[-1].strip()
