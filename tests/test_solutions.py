@@ -1,14 +1,19 @@
-"""Each exercise's solution in the classroom does what the workshop expects; each starter runs."""
+"""Each exercise's solution in the classroom does what the workshop expects; each starter runs; no frame from outside
+stops a board, and reading past a short frame's data is reported in the workshop's words."""
 from __future__ import annotations
 
 import itertools
 import random
 
 import pytest
+from outside import Outside
 from workshop import KIT, MS, classroom, payload, sent
 
-from appsim.workshop.classroom import Classroom
+from appsim.can.frame import CanFrame
 from appsim.chip.ecan.controller import Mode
+from appsim.sim import PS_PER_SECOND
+from appsim.workshop.classroom import Classroom
+from appsim.workshop.faults import board_fault
 
 TIMER1_PERIOD_PS = 65536 * 8 * 100_000        # 1:8 of Fosc/4 at 40 MHz: 52.4288 ms
 
@@ -186,3 +191,22 @@ def test_each_starter_runs_in_the_classroom_without_crashing(exercise):
     room = classroom(exercise, firmware_dir=KIT / "exercises")
     room.run(0.5)      # raises with the traceback if any board's firmware crashed
     assert all(board.glcd.line(1).startswith(f"EX{exercise}") for board in room.stations.values())
+
+
+# ------------------------------------------------------------------ what an outside node sends
+def test_reading_past_a_short_frame_is_reported_in_the_workshops_words(tmp_path):
+    unguarded = tmp_path / "ex3.py"
+    unguarded.write_text((KIT / "solutions" / "ex3.py").read_text().replace("if DataLen >= 5:", "if True:"))
+    room = classroom(3)
+    room.join(unguarded, station=1)
+    outside = Outside(room.bus)
+    room.run(0.12)
+    outside.send(CanFrame(0x088, b"\x01"))
+    room.bus.sim.run(until=round(0.2 * PS_PER_SECOND))
+    line = next(n for n, text in enumerate(unguarded.read_text().splitlines(), 1) if "RxData[3]" in text)
+    fault = board_fault(room.station(1).mcu.process)
+    assert fault is not None and fault.kind == "exception"
+    assert fault.message.startswith(f"main() crashed at line {line} of ex3.py (`putsGLCD(\"A/D    %4d\" % ((RxData[3] "
+                                    "<< 8) | RxData[4]))`): IndexError: the frame had 1 data byte; check DataLen "
+                                    "before reading RxData[3]")
+    assert all(board.mcu.process.failure is None for board in room.boards[2:]), "the other stations go on"
