@@ -79,6 +79,11 @@ class FirmwareHung(BaseException):
 
 
 # ------------------------------------------------------------------ the workshop
+class OutputError(AppsimError, OSError):
+    """A file the kit was asked to write that it cannot write (a missing directory, a read-only place, an unknown
+    format, a full disk), with what to do."""
+
+
 class GradeError(AppsimError):
     """Input the grader cannot use (a path, a results file, an option), with what to do."""
 

@@ -3,7 +3,8 @@
 The simulated clock only advances when firmware touches a register, so a loop that never does (`while True: pass`),
 a sleep or a runaway recursion would hang the simulation. Like the PIC's WDT, the watchdog resets it: after
 `WATCHDOG_SECONDS` of wall time with no register access, the firmware gets a `FirmwareHung` error saying what the
-watchdog saw and where, and the other boards go on. Ctrl-C stops the run, whichever firmware it lands in.
+watchdog saw and where, and the other boards go on. Ctrl-C stops the run, whichever firmware it lands in, once the
+simulator's own work in hand (a log record) is done.
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from appsim.errors import FirmwareHung
 if TYPE_CHECKING:
     from appsim.sim import Process, Simulator
 
-__all__ = ["WATCHDOG_SECONDS", "FirmwareHung", "ctrl_c_stops_the_run", "watchdog"]
+__all__ = ["WATCHDOG_SECONDS", "FirmwareHung", "ctrl_c_stops_the_run", "ctrl_c_waits", "watchdog"]
 
 WATCHDOG_SECONDS = 2.0
 WAITING_CPU_SHARE = 0.1     # a firmware that used less of the watched time than this was waiting, not looping
@@ -83,7 +84,7 @@ def what_it_saw(process: "Process", frame: FrameType, seconds: float, cpu_share:
     if mine is not None:
         line = linecache.getline(mine.f_code.co_filename, mine.f_lineno).strip()
         place = f" at line {mine.f_lineno} of {Path(mine.f_code.co_filename).name} (`{line}`)"
-    ran = f"the firmware of {process.name} ran {seconds:g} s (wall time){place} without touching any register"
+    ran = f"main() ran {seconds:g} s (wall time){place} without touching any register"
     if cpu_share < WAITING_CPU_SHARE:
         return (f"{ran}, waiting: a sleep (time.sleep) or a read that blocks. The simulated clock moves only as "
                 "firmware works the board, so a sleep stops it; to wait, poll Timer1's PIR1bits.TMR1IF or call "
@@ -94,6 +95,27 @@ def what_it_saw(process: "Process", frame: FrameType, seconds: float, cpu_share:
                 "function from itself")
     return (f"{ran}: an endless loop such as `while True: pass`. A real board would hang there too; poll a "
             "register in the loop (e.g. CANIsRxReady()) or end it")
+
+
+class _CtrlC:
+    """Blocks of the simulator's own work that Ctrl-C waits for (see `ctrl_c_waits`), and whether it was pressed."""
+
+    waiting_for = 0
+    pressed = False
+
+
+@contextmanager
+def ctrl_c_waits() -> Iterator[None]:
+    """While the simulator runs, Ctrl-C during this block takes effect at its end: what it does is done whole (a
+    log's record written and counted)."""
+    _CtrlC.waiting_for += 1
+    try:
+        yield
+    finally:
+        _CtrlC.waiting_for -= 1
+    if _CtrlC.pressed and not _CtrlC.waiting_for:
+        _CtrlC.pressed = False
+        raise KeyboardInterrupt
 
 
 @contextmanager
@@ -111,6 +133,9 @@ def ctrl_c_stops_the_run(sim: "Simulator") -> Iterator[None]:
         process = sim.running
         if process is not None and greenlet.getcurrent() is process:
             process.freeze(KeyboardInterrupt())
+        if _CtrlC.waiting_for:
+            _CtrlC.pressed = True
+            return
         raise KeyboardInterrupt
 
     signal.signal(signal.SIGINT, interrupt)

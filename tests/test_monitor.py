@@ -1,13 +1,16 @@
-"""The CANKing-like monitor: trace lines, bus load, error counters, and logs other CAN tools open."""
+"""The CANKing-like monitor: trace lines, bus load, error counters, and logs other CAN tools open, written as the bus
+runs."""
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 
 import can
 import pytest
 
-from appsim.bus.monitor import HEADER, bus_load, error_counters, format_event, summary, write_log
+from appsim.bus.monitor import LOG_FORMATS, HEADER, TraceLog, bus_load, error_counters, format_event, summary, write_log
+from appsim.errors import OutputError
 from test_bus_gotchas import normal_node
 from appsim.firmware import *  # noqa: F403
 
@@ -47,7 +50,7 @@ def test_error_counters_show_an_ack_error_victim(world):
     assert table[2].split() == ["listener", "listen-only", "0", "0", "error-active"]
 
 
-@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
+@pytest.mark.parametrize("suffix", sorted(LOG_FORMATS))
 def test_logs_read_back_with_python_can(traffic, tmp_path, suffix):
     path = write_log(traffic.bus.trace, tmp_path / f"trace{suffix}")
     messages = list(can.LogReader(path))
@@ -65,5 +68,27 @@ def test_candump_log_is_read_by_can_utils(traffic, tmp_path):
 
 
 def test_unknown_log_format_says_which_ones_work(traffic, tmp_path):
-    with pytest.raises(ValueError, match=r"\.log \(candump\)"):
+    with pytest.raises(OutputError, match=r"\.log \(candump\)"):
         write_log(traffic.bus.trace, tmp_path / "trace.xyz")
+
+
+@pytest.mark.parametrize("suffix", sorted(LOG_FORMATS))
+def test_a_log_is_on_disk_frame_by_frame_as_the_bus_runs(traffic, tmp_path, suffix):
+    """What a kill or a crash would leave: after each frame, the file as it is reads back to that frame."""
+    path = tmp_path / f"trace{suffix}"
+    log = TraceLog(path)
+    for n, event in enumerate(traffic.bus.trace, start=1):
+        log.write(event)
+        assert [m.arbitration_id for m in can.LogReader(path)] == [e.frame.can_id for e in traffic.bus.trace[:n]]
+    log.close()
+
+
+@pytest.mark.parametrize("path, complaint", [
+    ("no/such/folder/trace.log", "there is no directory"),
+    ("folder.log", "that is a directory"),
+    ("trace.trc", "use .log (candump), .asc (Vector), .blf (Vector binary) or .csv"),
+])
+def test_a_log_that_cannot_be_written_is_refused_when_opened(tmp_path, path, complaint):
+    (tmp_path / "folder.log").mkdir()
+    with pytest.raises(OutputError, match=re.escape(complaint)):
+        TraceLog(tmp_path / path)
