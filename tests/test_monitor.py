@@ -1,5 +1,5 @@
-"""The CANKing-like monitor: trace lines, bus load, error counters, and logs other CAN tools open, written as the bus
-runs."""
+"""The CANKing-like monitor: trace lines, bus load, error counters, logs other CAN tools open, written as the bus runs;
+the trace kept in memory is a window, the counts and the log are whole."""
 from __future__ import annotations
 
 import re
@@ -9,8 +9,16 @@ import subprocess
 import can
 import pytest
 
-from appsim.bus.monitor import LOG_FORMATS, HEADER, TraceLog, bus_load, error_counters, format_event, summary, write_log
+from appsim.bus.monitor import (LOG_FORMATS, HEADER, LiveTrace, TraceLog, bus_load, error_counters, format_event,
+                                summary, write_log)
+from appsim.bus.trace import TRACE_WINDOW
+from appsim.bus.wire import Bus
+from appsim.can.bits import INTERMISSION_BITS
 from appsim.errors import OutputError
+from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.workshop import checks
+from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES
+from conftest import World
 from test_bus_gotchas import normal_node
 from appsim.firmware import *  # noqa: F403
 
@@ -92,3 +100,28 @@ def test_a_log_that_cannot_be_written_is_refused_when_opened(tmp_path, path, com
     (tmp_path / "folder.log").mkdir()
     with pytest.raises(OutputError, match=re.escape(complaint)):
         TraceLog(tmp_path / path)
+
+
+def test_the_trace_keeps_a_window_and_the_counts_and_the_listeners_get_everything():
+    world = World()
+    world.bus = Bus(world.sim, CLASSROOM_BIT_RATE, trace_window=2)
+    everything = []
+    world.bus.trace.listeners.append(everything.append)
+    live = LiveTrace(world.bus)
+    world.node("a", normal_node([(0x100 + n, CAN_TX_STD_FRAME) for n in range(3)], delay_ms=1))
+    world.node("b", normal_node())
+    world.run(0.01)
+    trace = world.bus.trace
+    assert len(everything) == 3 and list(trace) == everything[1:] and trace.dropped == 1
+    assert "3 frames, 0 error frames" in summary(world.bus)
+    assert live.new_lines() == [f"{'':>11}  ... frames not kept in memory: 1 (the trace keeps the last 2; a log keeps "
+                                "every one)", *map(format_event, everything[1:])]
+
+
+def test_a_checks_whole_run_fits_in_the_trace_window():
+    """Checks read `bus.trace` after runs of at most a second: the window holds more events than the classroom bus can
+    carry in the longest, even if every one were the shortest error frame (cut at bit 10, flags and delimiter)."""
+    longest_s = max(getattr(getattr(checks, name), "SECONDS", 0) for name in EXERCISE_FILES)
+    shortest_event_bits = 10 + 2 * 6 + 8 + INTERMISSION_BITS
+    most_events = longest_s * CLASSROOM_BIT_RATE / shortest_event_bits
+    assert longest_s >= 1.0 and TRACE_WINDOW > 4 * most_events

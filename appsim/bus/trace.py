@@ -11,12 +11,16 @@ from typing import TYPE_CHECKING, overload
 if TYPE_CHECKING:
     from appsim.bus.wire import BusEvent
 
+# Events a trace keeps in memory (about 1.4 kB each): 2.5 simulated minutes of a classroom. A check's whole run
+# (1 s at most) fits many times over: at 125 kbit/s even a bus full of error frames carries under 4,000 a second.
+TRACE_WINDOW = 20_000
+
 
 class Trace(Sequence["BusEvent"]):
     """What the bus carried, oldest first: the last `window` events (every one if `window` is None), counts over the
     whole run, and `listeners`, called with each event as it happens (a log keeps what the window lets go)."""
 
-    def __init__(self, window: int | None = None):
+    def __init__(self, window: int | None = TRACE_WINDOW):
         if window is not None and window < 1:
             raise ValueError(f"a trace window holds 1 event or more (None: every event); got {window}")
         self.window = window

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Protocol
 
-from appsim.bus.trace import Trace
+from appsim.bus.trace import TRACE_WINDOW, Trace
 from appsim.can.bits import INTERMISSION_BITS, frame_bits
 from appsim.can.bittiming import BitTiming, BitTimingError
 from appsim.chip.ecan.controller import ECAN, Mode
@@ -198,7 +198,7 @@ class Bus:
     `trace` (and `loopback_trace`) keep the last `trace_window` events in memory (every one if None), with counts over
     the whole run; a log listening to `trace.listeners` keeps every event."""
 
-    def __init__(self, sim: Simulator, bit_rate: int = 125_000, *, trace_window: int | None = None):
+    def __init__(self, sim: Simulator, bit_rate: int = 125_000, *, trace_window: int | None = TRACE_WINDOW):
         if PS_PER_SECOND % bit_rate:
             raise ValueError(f"a bus bit rate of {bit_rate} bit/s has no whole bit time in picoseconds")
         self.sim = sim
