@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 import time
 
@@ -170,3 +171,14 @@ def test_ctrl_c_stops_the_run_wherever_it_lands_and_firmware_cannot_catch_it(wor
         world.sim.run(until=10**10)
     assert world.sim.now < 10**10 and isinstance(board.process.failure, KeyboardInterrupt)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_lone_firmware_writing_registers_forever_stops_where_the_run_ends():
+    """It touches registers, so the watchdog does not bark; with no event on the bus it ran past the end for ever."""
+    program = ("from appsim.bus.wire import Bus\nfrom appsim.chip.mcu import PIC18F8680\nfrom appsim.firmware import *\n"
+               "from appsim.sim import Simulator\n"
+               "def writer():\n    while True:\n        SFR.TXB0D0 = 1\n"
+               "sim = Simulator()\nmcu = Bus(sim).attach(PIC18F8680(sim, 'alone'))\nmcu.run(writer)\n"
+               "sim.run(until=10**9)\nprint(sim.now, mcu.process.local_time - sim.now < 10**6)\n")
+    result = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=60)
+    assert result.stdout.split() == ["1000000000", "True"], result.stderr
