@@ -56,11 +56,10 @@ def watchdog(sim: "Simulator", seconds: float | None = None) -> Iterator[None]:
         if seen[:2] != [process, process.local_time]:
             seen[:] = process, process.local_time, cpu
             return
-        if process.failure is not None:         # it caught the last bark's FirmwareHung and went on
-            process.freeze()
-            return
-        process.failure = FirmwareHung(what_it_saw(process, frame, seconds, (cpu - seen[2]) / seconds))
-        raise process.failure
+        if process.failure is None:
+            process.failure = FirmwareHung(what_it_saw(process, frame, seconds, (cpu - seen[2]) / seconds))
+            raise process.failure
+        process.freeze()                        # it caught the last bark's FirmwareHung and went on
 
     signal.signal(signal.SIGALRM, bark)
     signal.setitimer(signal.ITIMER_REAL, seconds, seconds)
@@ -113,9 +112,9 @@ def ctrl_c_waits() -> Iterator[None]:
         yield
     finally:
         _CtrlC.waiting_for -= 1
-    if _CtrlC.pressed and not _CtrlC.waiting_for:
-        _CtrlC.pressed = False
-        raise KeyboardInterrupt
+        if _CtrlC.pressed and not _CtrlC.waiting_for:
+            _CtrlC.pressed = False
+            raise KeyboardInterrupt         # also in place of an error the block raised: Ctrl-C came first
 
 
 @contextmanager

@@ -199,8 +199,8 @@ class TraceLog:
             self._file.commit()
         except OSError as error:
             self.close()
-            raise OutputError(f"{cannot_write(self.path, error)}. The log holds the run's first {self.written} "
-                              "frames, each one whole") from None
+            holds = f". The log holds the run's first {self.written} frames, each one whole" if self.written else ""
+            raise OutputError(f"{cannot_write(self.path, error)}{holds}") from None
 
     def close(self) -> None:
         """End the log as its format ends (ASC's last line, BLF's header): after a failed write, as far as it goes."""
