@@ -99,17 +99,16 @@ class Session:
             print(f"{'':>11}  ... {len(lines) - limit} more frames (see the trace log)", file=self.out)
         print(summary(self.bus), file=self.out)
 
-    def report_failures(self) -> bool:
+    def report_failures(self) -> None:
         """Say once, for each board whose firmware is no longer running, which file it ran and why it stopped, with
-        the line; whether any has stopped."""
+        the line (`reported` names them)."""
         for mcu in self.bus.boards():
             process = mcu.process
-            fault = None if process is None or mcu.name in self.reported else board_fault(process)
-            if fault is not None:
-                self.reported.add(mcu.name)
-                ran = f" ({process.filename})" if process.filename else ""
-                print(f"{mcu.name}{ran} stopped: {fault.message}", file=sys.stderr)
-        return bool(self.reported)
+            if process is None or mcu.name in self.reported or (fault := board_fault(process)) is None:
+                continue
+            self.reported.add(mcu.name)
+            ran = f" ({process.filename})" if process.filename else ""
+            print(f"{mcu.name}{ran} stopped: {fault.message}", file=sys.stderr)
 
     def interrupted(self) -> str:
         """What a Ctrl-C leaves: where the run stopped and what the logs hold."""
@@ -154,7 +153,8 @@ def session_command(logs: Callable[[argparse.Namespace], list[Path]] = logs_aske
                 except KeyboardInterrupt:
                     session.close()
                     raise KeyboardInterrupt(session.interrupted()) from None
-                return 1 if session.report_failures() else 0
+                session.report_failures()
+                return 1 if session.reported else 0
         return command
     return decorate
 

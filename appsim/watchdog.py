@@ -72,13 +72,13 @@ def watchdog(sim: "Simulator", seconds: float | None = None) -> Iterator[None]:
 
 def what_it_saw(process: "Process", frame: FrameType, seconds: float, cpu_share: float) -> str:
     """The watchdog's message: a wait, a recursion or a loop, at which line of the firmware, and what to do."""
-    depth, innermost = 0, frame
-    mine = None
-    while frame is not None and depth <= RECURSION_DEPTH:
-        if mine is None and frame.f_code.co_filename == process.filename:
-            mine = frame
+    depth, mine = 0, None
+    caller: FrameType | None = frame
+    while caller is not None and depth <= RECURSION_DEPTH:
+        if mine is None and caller.f_code.co_filename == process.filename:
+            mine = caller
         depth += 1
-        frame = frame.f_back
+        caller = caller.f_back
     place = ""
     if mine is not None:
         line = linecache.getline(mine.f_code.co_filename, mine.f_lineno).strip()
@@ -89,7 +89,7 @@ def what_it_saw(process: "Process", frame: FrameType, seconds: float, cpu_share:
                 "firmware works the board, so a sleep stops it; to wait, poll Timer1's PIR1bits.TMR1IF or call "
                 "Delay10KTCYx(), as the workshop's C does")
     if depth > RECURSION_DEPTH:
-        return (f"{ran}, more than {RECURSION_DEPTH} calls deep in {innermost.f_code.co_name}(): a recursion that "
+        return (f"{ran}, more than {RECURSION_DEPTH} calls deep in {frame.f_code.co_name}(): a recursion that "
                 "does not end. The PIC18's return stack holds 31 calls; loop in main() instead of calling a "
                 "function from itself")
     return (f"{ran}: an endless loop such as `while True: pass`. A real board would hang there too; poll a "

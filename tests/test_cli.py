@@ -120,7 +120,8 @@ def write(folder: Path, name: str, source: str) -> Path:
      "station1 (crash.py) stopped: main() crashed at line 5 of crash.py (`x = 1023 // 0`): ZeroDivisionError"),
     ("def main():\n    GLCD_Initial()\n", "station1 (crash.py) stopped: main() returned"),
     ("def main():\n    raise KeyboardInterrupt\n",
-     "station1 (crash.py) stopped: main() crashed at line 4 of crash.py (`raise KeyboardInterrupt`): KeyboardInterrupt"),
+     "station1 (crash.py) stopped: main() crashed at line 4 of crash.py (`raise KeyboardInterrupt`): "
+     "KeyboardInterrupt"),
 ])
 def test_board_says_where_its_firmware_stopped_and_exits_1(tmp_path, source, said):
     write(tmp_path, "crash.py", source)
@@ -194,11 +195,14 @@ def private_tmpfs(tmp_path: Path, options: str, *argv: str) -> subprocess.Comple
     disk, kept = tmp_path / "disk", tmp_path / "kept"
     disk.mkdir()
     kept.mkdir()
-    script = 'mount -t tmpfs -o "$1" appsim-test "$2" || exit 99; shift 3; "$@"; status=$?; cp -r "$0"/. "$K"/; exit $status'
-    command = ["unshare", "-m", "sh", "-c", script.replace("$0", '"$D"'), "sh", options, str(disk), "--",
-               sys.executable, "-m", "appsim", *(arg.replace("DISK", str(disk)) for arg in argv)]
+    script = ('mount -t tmpfs -o "$OPTIONS" appsim-test "$DISK" || exit 99\n'
+              '"$@"; status=$?\n'
+              'cp -r "$DISK"/. "$KEPT"/\n'
+              'exit $status\n')
+    command = ["unshare", "-m", "sh", "-c", script, "sh", sys.executable, "-m", "appsim",
+               *(arg.replace("DISK", str(disk)) for arg in argv)]
     result = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=KIT,
-                            env={**os.environ, "D": str(disk), "K": str(kept)})
+                            env={**os.environ, "OPTIONS": options, "DISK": str(disk), "KEPT": str(kept)})
     if result.returncode == 99:
         pytest.skip(f"cannot mount a tmpfs in a private mount namespace here: {result.stderr.strip()}")
     return result
@@ -230,7 +234,7 @@ def test_a_full_disk_ends_the_log_at_its_last_whole_frame_and_says_so(tmp_path, 
 
 # ------------------------------------------------------------------ Ctrl-C
 def interrupt(tmp_path: Path, log: Path, *argv: str) -> tuple[int, str]:
-    """Start `appsim ARGV`, press Ctrl-C once `log` reads back 20 frames; the exit status and the last line of stderr."""
+    """Start `appsim ARGV`, press Ctrl-C once `log` reads back 20 frames: the exit status, the last line of stderr."""
     with (tmp_path / "stdout").open("w") as out:
         process = subprocess.Popen([sys.executable, "-m", "appsim", *argv], stdout=out, stderr=subprocess.PIPE,
                                    text=True, cwd=KIT)

@@ -15,7 +15,6 @@ from appsim.bus.trace import TRACE_WINDOW
 from appsim.bus.wire import Bus
 from appsim.can.bits import INTERMISSION_BITS
 from appsim.errors import OutputError
-from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import checks
 from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES
 from conftest import World

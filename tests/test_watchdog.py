@@ -175,8 +175,8 @@ def test_ctrl_c_stops_the_run_wherever_it_lands_and_firmware_cannot_catch_it(wor
 
 def test_a_lone_firmware_writing_registers_forever_stops_where_the_run_ends():
     """It touches registers, so the watchdog does not bark; with no event on the bus it ran past the end for ever."""
-    program = ("from appsim.bus.wire import Bus\nfrom appsim.chip.mcu import PIC18F8680\nfrom appsim.firmware import *\n"
-               "from appsim.sim import Simulator\n"
+    program = ("from appsim.bus.wire import Bus\nfrom appsim.chip.mcu import PIC18F8680\n"
+               "from appsim.firmware import *\nfrom appsim.sim import Simulator\n"
                "def writer():\n    while True:\n        SFR.TXB0D0 = 1\n"
                "sim = Simulator()\nmcu = Bus(sim).attach(PIC18F8680(sim, 'alone'))\nmcu.run(writer)\n"
                "sim.run(until=10**9)\nprint(sim.now, mcu.process.local_time - sim.now < 10**6)\n")

@@ -154,7 +154,8 @@ def cannot_write(path: Path, error: OSError) -> OutputError:
               errno.EDQUOT: "the disk quota is used up",
               errno.EROFS: "that file system is read-only: give a path where you can write",
               errno.EACCES: "no permission to write there: give a path where you can write",
-              errno.EISDIR: "that is a directory: give a file name such as trace.log"}.get(error.errno, error.strerror)
+              errno.EISDIR: "that is a directory: give a file name such as trace.log"}.get(error.errno or 0)
+    reason = reason or error.strerror or str(error)
     return OutputError(f"cannot write {path}: {reason}")
 
 
@@ -176,6 +177,7 @@ class TraceLog:
         except OSError as error:
             raise cannot_write(self.path, error) from None
         self._channel: str | int = channel if suffix == ".log" else 1
+        self._writer: can.io.generic.FileIOMessageWriter
         if suffix == ".blf":            # one container per frame: stored, as there is nothing to compress in one
             self._writer = can.BLFWriter(self._file, compression_level=0)
         else:

@@ -16,7 +16,7 @@ from types import ModuleType
 from appsim.errors import FirmwareError
 
 _loads = itertools.count()
-TRACEBACK_FRAMES = 50           # of a failing firmware, the innermost ones a report looks at (a recursion has thousands)
+TRACEBACK_FRAMES = 50           # of a failing firmware, the innermost a report looks at (a recursion has thousands)
 
 
 def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
