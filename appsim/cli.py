@@ -8,8 +8,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from appsim.errors import FirmwareError
+from appsim.errors import FirmwareError, OutputError
 from appsim.workshop.course import CLASSROOM_BIT_RATE, CLASSROOM_EXERCISES, STATIONS
+
+HOUR, DAY = 3600, 86400
+INTERRUPTED = 130               # the exit status after Ctrl-C: 128 + SIGINT, as shells report it
 
 
 def _potentiometer(text: str) -> int:
@@ -19,15 +22,15 @@ def _potentiometer(text: str) -> int:
     return value
 
 
-def _seconds(text: str, what: str = "simulated time") -> float:
+def _seconds(text: str, what: str = "simulated time", most: int = DAY) -> float:
     value = float(text)
-    if not 0 < value <= 3600:
-        raise argparse.ArgumentTypeError(f"{what} must be between 0 and 3600 s; got {value}")
+    if not 0 < value <= most:
+        raise argparse.ArgumentTypeError(f"{what} must be between 0 and {most} s; got {value}")
     return value
 
 
 def _wall_seconds(text: str) -> float:
-    return _seconds(text, "the time limit (wall-clock seconds)")
+    return _seconds(text, "the time limit (wall-clock seconds)", HOUR)
 
 
 def _exercise(text: str) -> int:
@@ -108,7 +111,7 @@ def cmd_grade(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("\nappsim grade: interrupted; what was graded is kept in the results file: run the same command again "
               "to resume without grading it again", file=sys.stderr)
-        return 130
+        return INTERRUPTED
     return 0
 
 
@@ -148,7 +151,6 @@ def build_parser() -> argparse.ArgumentParser:
     classroom.add_argument("--exercise", type=_exercise, default=6, help="1..6 (default 6)")
     classroom.add_argument("--join", metavar="FIRMWARE", help="your firmware file, on --station")
     classroom.add_argument("--station", type=_station, default=1, help="which station your board is (1..6)")
-    classroom.add_argument("--log", type=Path, help="write the trace: .log (candump), .asc, .blf, .csv, .trc")
     classroom.add_argument("--full-trace", action="store_true", help="print every frame, not the first 40")
 
     monitor = commands.add_parser(
@@ -164,11 +166,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0), (monitor, 60.0)):
         sub.add_argument("--seconds", type=_seconds, default=default_seconds,
-                         help=f"simulated time to run (default {default_seconds:g} s)")
+                         help=f"simulated time to run, up to a day (default {default_seconds:g} s)")
     for sub in (demo, classroom, monitor):
         sub.add_argument("--seed", type=int, default=202,
                          help="seed of the stations' potentiometer values (default 202): same seed, same run")
     for sub in (board, classroom, monitor):
+        sub.add_argument("--log", type=Path,
+                         help="write every frame as it goes: .log (candump), .asc, .blf or .csv; Ctrl-C or a "
+                              "crash leaves it readable to its last frame")
         sub.add_argument("--interface", help="python-can interface to join: socketcan, virtual, udp_multicast, "
                                              "pcan, kvaser, slcan ... (default: the simulated bus alone)")
         sub.add_argument("--channel", help="python-can channel, e.g. vcan0, can0, /dev/ttyACM0")
@@ -228,9 +233,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)
-    except FirmwareError as error:
+    except (FirmwareError, OutputError) as error:
         print(f"appsim: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt as interrupt:       # one line, which says what was kept where the command knows it
+        print(f"appsim {args.command}: {str(interrupt) or 'interrupted (Ctrl-C)'}", file=sys.stderr)
+        return INTERRUPTED
     except BrokenPipeError:          # `appsim demo | head`: the reader has all it wanted
         sys.stdout = None
         return 0

@@ -1,4 +1,5 @@
 """Every error the kit raises, as one tree under `AppsimError`; each is also the fitting builtin (as python-can's are).
+One stands apart: the watchdog's `FirmwareHung`, a BaseException (see there).
 
 One module, imported by the firmware library too, so an error raised on the board crosses the grading sandbox intact.
 """
@@ -69,11 +70,20 @@ class AN738Error(AppsimError, ValueError):
     """A call the C library would accept and silently get wrong (or hang on)."""
 
 
-class FirmwareHung(AppsimError, RuntimeError):
-    """The firmware ran for seconds without reading or writing a register: an endless loop."""
+class FirmwareHung(BaseException):
+    """The watchdog stopped a firmware that ran for seconds without reading or writing a register (an endless loop,
+    a sleep, a recursion that does not end); the message says which, and where.
+
+    A BaseException, as KeyboardInterrupt is, and so outside `AppsimError`: the firmware's own `except Exception:`
+    around its loop must not catch the watchdog (a firmware that catches it anyway is frozen where it is)."""
 
 
 # ------------------------------------------------------------------ the workshop
+class OutputError(AppsimError, OSError):
+    """A file the kit was asked to write that it cannot write (a missing directory, a read-only place, an unknown
+    format, a full disk), with what to do."""
+
+
 class GradeError(AppsimError):
     """Input the grader cannot use (a path, a results file, an option), with what to do."""
 

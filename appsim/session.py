@@ -4,8 +4,9 @@ linked to an outside bus in real time), and what it prints and writes. `appsim.c
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
@@ -14,42 +15,58 @@ import can
 from appsim.board.app023 import APP023
 from appsim.board.usbcdc import UsbCdc
 from appsim.bus.link import BusLink
-from appsim.bus.monitor import HEADER, LiveTrace, error_counters, summary, write_log
+from appsim.bus.monitor import HEADER, LiveTrace, TraceLog, cannot_write, error_counters, summary
 from appsim.bus.realtime import WallClock
 from appsim.bus.wire import Bus
 from appsim.firmware.loader import constants, load_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop.classroom import Classroom, station_defines
 from appsim.workshop.course import CLASSROOM_BIT_RATE, SOLUTIONS, STATIONS, station_ids
+from appsim.workshop.faults import board_fault
 
 TRACE_LINES_SHOWN = 40
 
 
 class Session:
-    """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time."""
+    """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time.
 
-    def __init__(self, args: argparse.Namespace, out: TextIO):
+    Its logs (`logs`) are opened first, so a path that cannot be written stops the command before anything runs
+    (`OutputError`); each gets every frame as the bus carries it. A session is closed (logs ended, link closed and its
+    report printed) when its `with` block ends."""
+
+    def __init__(self, args: argparse.Namespace, out: TextIO, *, logs: Sequence[Path] = ()):
         self.sim = Simulator()
         self.bus = Bus(self.sim, CLASSROOM_BIT_RATE)
         self.out = out
         self.link: BusLink | None = None
         self.trace = LiveTrace(self.bus)
-        if getattr(args, "interface", None):
-            try:
-                self.link = BusLink(self.bus, interface=args.interface, channel=args.channel)
-            except (can.CanError, ValueError, OSError, ImportError) as error:
-                raise SystemExit(f"appsim: cannot open the python-can bus interface={args.interface!r} "
-                                 f"channel={args.channel!r}: {error}") from None
+        self.logs: list[TraceLog] = []
+        self.reported: set[str] = set()          # boards whose stop was reported
+        try:
+            for path in logs:
+                log = TraceLog(path)
+                self.logs.append(log)
+                self.bus.trace.listeners.append(log.write)
+            if getattr(args, "interface", None):
+                try:
+                    self.link = BusLink(self.bus, interface=args.interface, channel=args.channel)
+                except (can.CanError, ValueError, OSError, ImportError) as error:
+                    raise SystemExit(f"appsim: cannot open the python-can bus interface={args.interface!r} "
+                                     f"channel={args.channel!r}: {error}") from None
+        except BaseException:
+            self.close()
+            raise
 
     def run(self, seconds: float, *, live: bool, real_time: bool = False,
             pollers: tuple[Callable[[], None], ...] = ()) -> None:
         """Run `seconds` of simulated time: as fast as it can, or, linked (or `real_time`), paced to the
-        wall clock with `pollers` and the link polled between slices, and the trace shown live if `live`."""
+        wall clock with `pollers` and the link polled between slices, the trace shown live if `live`, and a board
+        that stops reported when it does."""
         if self.link is None and not real_time:
             self._fast(seconds)
             return
         clock = WallClock(self.sim)
-        for poll in pollers:
+        for poll in (*pollers, self.report_failures):
             clock.add_poller(poll)
         if self.link is not None:
             clock.add_poller(self.link.poll)
@@ -57,14 +74,7 @@ class Session:
                   "(Ctrl-C stops)", file=self.out)
         if live:
             clock.add_poller(lambda: self._show(self.trace.new_lines()))
-        try:
-            clock.run(seconds)
-        except KeyboardInterrupt:
-            print("stopped", file=self.out)
-        finally:
-            if self.link is not None:
-                print(self.link.report(), file=self.out)
-                self.link.close()
+        clock.run(seconds)
 
     def _fast(self, seconds: float) -> None:
         end = round(seconds * PS_PER_SECOND)
@@ -88,6 +98,77 @@ class Session:
         if limit is not None and len(lines) > limit:
             print(f"{'':>11}  ... {len(lines) - limit} more frames (see the trace log)", file=self.out)
         print(summary(self.bus), file=self.out)
+
+    def report_failures(self) -> None:
+        """Say once, for each board whose firmware is no longer running, which file it ran and why it stopped, with
+        the line (`reported` names them)."""
+        for mcu in self.bus.boards():
+            process = mcu.process
+            if process is None or mcu.name in self.reported or (fault := board_fault(process)) is None:
+                continue
+            self.reported.add(mcu.name)
+            ran = f" ({process.filename})" if process.filename else ""
+            print(f"{mcu.name}{ran} stopped: {fault.message}", file=sys.stderr)
+
+    def interrupted(self) -> str:
+        """What a Ctrl-C leaves: where the run stopped and what the logs hold."""
+        kept = "".join(f"; {log.path} holds its first {log.written} frames" for log in self.logs)
+        return f"interrupted (Ctrl-C) at {self.sim.now / PS_PER_SECOND:.3f} s of simulated time{kept}"
+
+    def close(self) -> None:
+        """End the logs, close the link (its report says what it carried and refused)."""
+        for log in self.logs:
+            log.close()
+        if self.link is not None:
+            print(self.link.report(), file=self.out)
+            self.link.close()
+            self.link = None
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+Body = Callable[[argparse.Namespace, Session], None]
+Command = Callable[[argparse.Namespace], int]
+
+
+def logs_asked(args: argparse.Namespace) -> list[Path]:
+    """The log `--log` names, if any."""
+    return [args.log] if args.log else []
+
+
+def session_command(logs: Callable[[argparse.Namespace], list[Path]] = logs_asked) -> Callable[[Body], Command]:
+    """A command that runs a session: its `logs` are checked before anything runs (an `OutputError` for the caller);
+    a board that stopped is reported and makes the exit status 1; after Ctrl-C, the KeyboardInterrupt for the caller
+    says where the run stopped and what the logs hold."""
+    def decorate(body: Body) -> Command:
+        @functools.wraps(body)
+        def command(args: argparse.Namespace) -> int:
+            with Session(args, sys.stdout, logs=logs(args)) as session:
+                try:
+                    body(args, session)
+                except KeyboardInterrupt:
+                    session.close()
+                    raise KeyboardInterrupt(session.interrupted()) from None
+                session.report_failures()
+                return 1 if session.reported else 0
+        return command
+    return decorate
+
+
+def check_writable(path: Path) -> None:
+    """An `OutputError` now if `path` could not be written later; the file is left as it was."""
+    existed = path.exists()
+    try:
+        with path.open("ab"):
+            pass
+    except OSError as error:
+        raise cannot_write(path, error) from None
+    if not existed:
+        path.unlink()
 
 
 def print_lcds(boards: list[APP023], out: TextIO) -> None:
@@ -115,36 +196,13 @@ def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
         board.glcd.picture(ax=ax)
         ax.set_title(board.name, fontsize=10)
     figure.tight_layout()
-    figure.savefig(path, dpi=100)
-    plt.close(figure)
+    try:
+        figure.savefig(path, dpi=100)
+    except OSError as error:
+        raise cannot_write(path, error) from None
+    finally:
+        plt.close(figure)
     return path
-
-
-def run_board(firmware: Path, *, seconds: float, potentiometer: int, out: TextIO | None = None,
-              args: argparse.Namespace | None = None) -> APP023:
-    """One board on its own bus (or on an outside bus); prints what it did and its LCD."""
-    out = out or sys.stdout
-    session = Session(args or argparse.Namespace(), out)
-    name = getattr(args, "name", None) or "station1"
-    board = APP023(session.bus, name, potentiometer=potentiometer)
-    process = board.run(firmware)
-    print(f"APP023 '{name}' running {firmware} for {seconds:g} s (simulated), "
-          f"potentiometer {potentiometer}, bus {session.bus.bit_rate // 1000} kbit/s", file=out)
-    session.run(seconds, live=True)
-    mode = board.ecan.opmode.name.replace("_", "-").lower()
-    print(f"  ECAN ends in {mode} mode (CANSTAT = 0x{board.ecan.read(0xF6E):02X}), "
-          f"TEC {board.ecan.tec}, REC {board.ecan.rec}", file=out)
-    for event in session.bus.loopback_trace:
-        print(f"  {event.start_ps / PS_PER_SECOND:10.6f} s  sent {event.frame}  (loopback: inside the chip)",
-              file=out)
-        for _, what in event.received:
-            print(f"  {event.end_ps / PS_PER_SECOND:10.6f} s  received: {what}", file=out)
-    if session.link is None:
-        session.print_trace()
-    print(board.glcd, file=out)
-    if process.failure is not None:
-        print(f"  the firmware stopped with an error:\n{process.failure_text}", file=out)
-    return board
 
 
 def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
@@ -156,9 +214,19 @@ def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
     return classroom
 
 
-def cmd_demo(args: argparse.Namespace) -> int:
-    out = sys.stdout
-    session = Session(args, out)
+def _demo_logs(args: argparse.Namespace) -> list[Path]:
+    """The demo's --out folder, made if need be, and the logs it holds."""
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise cannot_write(args.out, error) from None
+    return [args.out / "trace.log", args.out / "trace.asc"]
+
+
+@session_command(logs=_demo_logs)
+def cmd_demo(args: argparse.Namespace, session: Session) -> None:
+    out = session.out
+    check_writable(args.out / "lcds.png")
     classroom = workshop_in_progress(session.bus, args.seed)
     print("CAN Workshop 202, simulated: the master console and six APP023 stations on one 125 kbit/s bus.\n"
           "Station k is working on exercise k: Ex1 loopback (off the bus), Ex2 periodic data, Ex3 filters,\n"
@@ -169,22 +237,36 @@ def cmd_demo(args: argparse.Namespace) -> int:
     session.print_trace()
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
-    args.out.mkdir(parents=True, exist_ok=True)
-    log = write_log(session.bus.trace, args.out / "trace.log")
-    asc = write_log(session.bus.trace, args.out / "trace.asc")
     picture = save_lcd_picture(classroom.boards, args.out / "lcds.png")
-    print(f"\nwrote {log} (candump -L format), {asc} (Vector ASC) and {picture} (every LCD)", file=out)
-    return 0
+    candump, asc = (log.path for log in session.logs)
+    print(f"\nwrote {candump} (candump -L format), {asc} (Vector ASC) and {picture} (every LCD)", file=out)
 
 
-def cmd_board(args: argparse.Namespace) -> int:
-    run_board(Path(args.firmware), seconds=args.seconds, potentiometer=args.potentiometer, args=args)
-    return 0
+@session_command()
+def cmd_board(args: argparse.Namespace, session: Session) -> None:
+    """One firmware file on one board, on its own bus (or on an outside bus): what it did and its LCD."""
+    out, firmware = session.out, Path(args.firmware)
+    board = APP023(session.bus, args.name, potentiometer=args.potentiometer)
+    board.run(firmware)
+    print(f"APP023 '{args.name}' running {firmware} for {args.seconds:g} s (simulated), "
+          f"potentiometer {args.potentiometer}, bus {session.bus.bit_rate // 1000} kbit/s", file=out)
+    session.run(args.seconds, live=True)
+    mode = board.ecan.opmode.name.replace("_", "-").lower()
+    print(f"  ECAN ends in {mode} mode (CANSTAT = 0x{board.ecan.read(0xF6E):02X}), "
+          f"TEC {board.ecan.tec}, REC {board.ecan.rec}", file=out)
+    for event in session.bus.loopback_trace:
+        print(f"  {event.start_ps / PS_PER_SECOND:10.6f} s  sent {event.frame}  (loopback: inside the chip)",
+              file=out)
+        for _, what in event.received:
+            print(f"  {event.end_ps / PS_PER_SECOND:10.6f} s  received: {what}", file=out)
+    if session.link is None:
+        session.print_trace()
+    print(board.glcd, file=out)
 
 
-def cmd_classroom(args: argparse.Namespace) -> int:
-    out = sys.stdout
-    session = Session(args, out)
+@session_command()
+def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
+    out = session.out
     classroom = Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
     if args.join:
         firmware = load_firmware(args.join)
@@ -203,15 +285,14 @@ def cmd_classroom(args: argparse.Namespace) -> int:
         session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN)
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
-    if args.log:
-        print(f"wrote {write_log(session.bus.trace, args.log)}", file=out)
-    return 0
+    for log in session.logs:
+        print(f"wrote {log.path} ({log.written} frames)", file=out)
 
 
-def cmd_monitor(args: argparse.Namespace) -> int:
+@session_command()
+def cmd_monitor(args: argparse.Namespace, session: Session) -> None:
     """Demo1: the classroom plus a board running the CAN monitor, its USB-CDC port open on this PC."""
-    out = sys.stdout
-    session = Session(args, out)
+    out = session.out
     Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
     board = APP023(session.bus, "demo1")
     if args.slcan:
@@ -228,5 +309,4 @@ def cmd_monitor(args: argparse.Namespace) -> int:
               f"  running the classroom (exercise {args.exercise}) in real time for {args.seconds:g} s; "
               "Ctrl-C stops", file=out)
         session.run(args.seconds, live=False, real_time=True, pollers=(usb.poll,))
-        print(f"{len(session.bus.frames())} frames on the bus\n{usb.report()}", file=out)
-    return 0
+        print(f"{session.bus.trace.frames} frames on the bus\n{usb.report()}", file=out)

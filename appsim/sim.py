@@ -15,7 +15,7 @@ from typing import Any
 
 import greenlet
 
-from appsim.watchdog import watchdog
+from appsim.watchdog import ctrl_c_stops_the_run, watchdog
 
 PS_PER_SECOND = 10**12
 
@@ -101,10 +101,14 @@ class Simulator:
     def run(self, until: int | None = None) -> None:
         """Advance simulated time, to `until` (ps) or until nothing is left to happen.
 
-        A firmware stuck in a loop that touches no register is stopped by the watchdog (`FirmwareHung`).
+        A firmware that runs on without touching a register is stopped by the watchdog (`FirmwareHung`); Ctrl-C
+        stops the run (KeyboardInterrupt here), wherever it lands, and the firmware it landed in stays where it was.
         """
-        with watchdog(self):
-            self._run(until)
+        with watchdog(self), ctrl_c_stops_the_run(self):
+            try:
+                self._run(until)
+            finally:
+                self.running = None
 
     def _run(self, until: int | None) -> None:
         """Events and ready processes share one (time, order) sequence: `order` comes from one counter,
@@ -120,8 +124,8 @@ class Simulator:
                     break
                 process = heappop(ready)[2]
                 self.now = time
-                # How far it may go before it must hand over: the next event, or the next process's quantum.
-                horizon = events[0][0] if events else float("inf")
+                # How far it may go before it must hand over: the next event, the next process's quantum, the end.
+                horizon = events[0][0] if events and events[0][0] < last else last
                 if ready:
                     others = max(ready[0][0], self.quiet_until()) + self.quantum_ps
                     if others < horizon:
@@ -150,11 +154,14 @@ class Process(greenlet.greenlet):
     It owns a local time that runs ahead of the simulator's `now` as it spends instruction cycles.
     It hands control back when that time passes the horizon (the next thing that must happen
     first), or parks when it is polling a world that has not changed.
+
+    Whatever main() raises (an error, sys.exit(), KeyboardInterrupt, the watchdog's FirmwareHung) stops this board
+    only: it is kept in `failure`. A main() that returns leaves `finished` set and no failure.
     """
 
     # Slots: attributes of a greenlet subclass are otherwise looked up the slow way, on every register access.
-    __slots__ = ("failure", "failure_text", "finished", "horizon", "local_time", "main", "name", "parked",
-                 "sim", "watched")
+    __slots__ = ("failure", "finished", "horizon", "local_time", "main", "name", "parked", "sim", "stopping",
+                 "watched")
 
     def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: contextvars.Context | None):
         super().__init__(self._body)
@@ -168,29 +175,45 @@ class Process(greenlet.greenlet):
         self.parked = False
         self.watched = True           # by the watchdog (a sandboxed firmware has its own limits)
         self.finished = False
+        self.stopping = False
         self.failure: BaseException | None = None
-        self.failure_text = ""
 
     def _body(self) -> None:
         try:
             self.main()
-        except greenlet.GreenletExit:
-            raise
-        except (Exception, SystemExit) as failure:  # a crash or sys.exit() stops this board, not the simulation
-            self.failure = failure
-            self.failure_text = traceback.format_exc()
+        except BaseException as failure:        # a crash, sys.exit(), KeyboardInterrupt: this board stops, no other
+            if self.failure is None and not self.stopping:
+                self.failure = failure
         finally:
             self.finished = True
+
+    @property
+    def filename(self) -> str | None:
+        """The file main() was loaded from (where a failure's line is looked for), if it has one."""
+        code = getattr(self.main, "__code__", None)
+        return code.co_filename if code is not None else None
+
+    @property
+    def failure_text(self) -> str:
+        """The failure's traceback, its last `TRACEBACK_FRAMES` frames (a runaway recursion has thousands)."""
+        from appsim.firmware.loader import TRACEBACK_FRAMES     # the firmware's side owns how failures are shown
+        if self.failure is None:
+            return ""
+        return "".join(traceback.format_exception(self.failure, limit=-TRACEBACK_FRAMES))
 
     def spend(self, time_ps: int) -> None:
         """Account for instructions executed; hand over if that passes the horizon."""
         self.local_time += time_ps
         if self.local_time > self.horizon:
+            if self.failure is not None:        # it caught the watchdog's FirmwareHung and went on
+                self.freeze()
             self.sim._make_ready(self)
             self.parent.switch()
 
     def park(self) -> None:
         """Wait, without spending cycles one by one, until `wake()` says something changed."""
+        if self.failure is not None:
+            self.freeze()
         self.parked = True
         self.parent.switch()
 
@@ -200,8 +223,26 @@ class Process(greenlet.greenlet):
             self.local_time = max(self.local_time, self.sim.now)
             self.sim._make_ready(self)
 
+    def freeze(self, failure: BaseException | None = None) -> None:
+        """Stop this firmware for good where it is, from inside it (the watchdog's and Ctrl-C's last resort): it hands
+        over to the simulator and is never resumed. Nor is it ever killed, which would run its code again (and a
+        firmware that catches GreenletExit would run on): it stays in `FROZEN`. With `failure`, the simulator gets
+        that raised; it is the board's failure unless it had one."""
+        FROZEN.append(self)
+        self.finished = True
+        if failure is None:
+            self.parent.switch()
+        else:
+            if self.failure is None:
+                self.failure = failure
+            self.parent.throw(failure)
+
     def stop(self) -> None:
         """End the firmware (as a reset would), wherever it is."""
+        self.stopping = True
         if not self.dead:
             self.throw(greenlet.GreenletExit)
         self.finished = True
+
+
+FROZEN: list[Process] = []      # firmware stopped where it was (see Process.freeze), never to run again

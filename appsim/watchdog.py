@@ -1,43 +1,65 @@
-"""A watchdog for firmware that spins without touching the hardware (`while True: pass`).
+"""Signals while firmware runs: the watchdog for firmware that runs on without touching the hardware, and Ctrl-C.
 
-The simulated clock only advances when firmware touches a register, so such a loop would hang the
-simulation. Like the PIC's WDT, the watchdog resets it: after `WATCHDOG_SECONDS` of wall time with no
-register access, the firmware gets a `FirmwareHung` error, and the other boards go on.
+The simulated clock only advances when firmware touches a register, so a loop that never does (`while True: pass`),
+a sleep or a runaway recursion would hang the simulation. Like the PIC's WDT, the watchdog resets it: after
+`WATCHDOG_SECONDS` of wall time with no register access, the firmware gets a `FirmwareHung` error saying what the
+watchdog saw and where, and the other boards go on. Ctrl-C stops the run, whichever firmware it lands in, once the
+simulator's own work in hand (a log record) is done.
 """
 from __future__ import annotations
 
+import linecache
 import signal
 import threading
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
+from types import FrameType
 from typing import TYPE_CHECKING
+
+import greenlet
+
 from appsim.errors import FirmwareHung
 
 if TYPE_CHECKING:
-    from appsim.sim import Simulator
+    from appsim.sim import Process, Simulator
+
+__all__ = ["WATCHDOG_SECONDS", "FirmwareHung", "ctrl_c_stops_the_run", "ctrl_c_waits", "watchdog"]
 
 WATCHDOG_SECONDS = 2.0
+WAITING_CPU_SHARE = 0.1     # a firmware that used less of the watched time than this was waiting, not looping
+RECURSION_DEPTH = 1000      # Python's own default limit: a firmware deeper than that raised the limit and recursed on
 
 
 @contextmanager
-def watchdog(sim: "Simulator", seconds: float = WATCHDOG_SECONDS) -> Iterator[None]:
+def watchdog(sim: "Simulator", seconds: float | None = None) -> Iterator[None]:
     """Watch the firmware `sim` runs, from the main thread (elsewhere, on Windows, or if SIGALRM is taken:
-    no watch)."""
+    no watch).
+
+    A firmware still at the same point of its simulated time after `seconds` (`WATCHDOG_SECONDS`) gets `FirmwareHung`.
+    One that catches it and goes on is frozen where it is at the next bark: it never runs again."""
+    seconds = WATCHDOG_SECONDS if seconds is None else seconds
     if (not hasattr(signal, "setitimer")                  # Windows: no interval timers, no watch
             or threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGALRM) not in (signal.SIG_DFL, None)):
         yield
         return
-    seen: list = [None, None]
+    seen: list = [None, None, 0.0]          # the running process, its simulated time, this thread's CPU time then
 
-    def bark(signum: int, frame: object) -> None:
-        process = sim.running
-        now = None if process is None or not process.watched else (process, process.local_time)
-        if now is not None and now == tuple(seen):
-            raise FirmwareHung(f"the firmware of {process.name} ran {seconds:g} s (wall time) without touching "
-                               "any register: an endless loop such as `while True: pass`. A real board would "
-                               "hang there too; poll a register in the loop (e.g. CANIsRxReady()) or end it")
-        seen[:] = now if now is not None else (None, None)
+    def bark(signum: int, frame: FrameType | None) -> None:
+        process, cpu = sim.running, time.thread_time()
+        if (process is None or greenlet.getcurrent() is not process or not process.watched or process.finished
+                or frame is None):
+            seen[:] = None, None, cpu
+            return
+        if seen[:2] != [process, process.local_time]:
+            seen[:] = process, process.local_time, cpu
+            return
+        if process.failure is None:
+            process.failure = FirmwareHung(what_it_saw(process, frame, seconds, (cpu - seen[2]) / seconds))
+            raise process.failure
+        process.freeze()                        # it caught the last bark's FirmwareHung and went on
 
     signal.signal(signal.SIGALRM, bark)
     signal.setitimer(signal.ITIMER_REAL, seconds, seconds)
@@ -46,3 +68,77 @@ def watchdog(sim: "Simulator", seconds: float = WATCHDOG_SECONDS) -> Iterator[No
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, signal.SIG_DFL)
+
+
+def what_it_saw(process: "Process", frame: FrameType, seconds: float, cpu_share: float) -> str:
+    """The watchdog's message: a wait, a recursion or a loop, at which line of the firmware, and what to do."""
+    depth, mine = 0, None
+    caller: FrameType | None = frame
+    while caller is not None and depth <= RECURSION_DEPTH:
+        if mine is None and caller.f_code.co_filename == process.filename:
+            mine = caller
+        depth += 1
+        caller = caller.f_back
+    place = ""
+    if mine is not None:
+        line = linecache.getline(mine.f_code.co_filename, mine.f_lineno).strip()
+        place = f" at line {mine.f_lineno} of {Path(mine.f_code.co_filename).name} (`{line}`)"
+    ran = f"main() ran {seconds:g} s (wall time){place} without touching any register"
+    if cpu_share < WAITING_CPU_SHARE:
+        return (f"{ran}, waiting: a sleep (time.sleep) or a read that blocks. The simulated clock moves only as "
+                "firmware works the board, so a sleep stops it; to wait, poll Timer1's PIR1bits.TMR1IF or call "
+                "Delay10KTCYx(), as the workshop's C does")
+    if depth > RECURSION_DEPTH:
+        return (f"{ran}, more than {RECURSION_DEPTH} calls deep in {frame.f_code.co_name}(): a recursion that "
+                "does not end. The PIC18's return stack holds 31 calls; loop in main() instead of calling a "
+                "function from itself")
+    return (f"{ran}: an endless loop such as `while True: pass`. A real board would hang there too; poll a "
+            "register in the loop (e.g. CANIsRxReady()) or end it")
+
+
+class _CtrlC:
+    """Blocks of the simulator's own work that Ctrl-C waits for (see `ctrl_c_waits`), and whether it was pressed."""
+
+    waiting_for = 0
+    pressed = False
+
+
+@contextmanager
+def ctrl_c_waits() -> Iterator[None]:
+    """While the simulator runs, Ctrl-C during this block takes effect at its end: what it does is done whole (a
+    log's record written and counted)."""
+    _CtrlC.waiting_for += 1
+    try:
+        yield
+    finally:
+        _CtrlC.waiting_for -= 1
+        if _CtrlC.pressed and not _CtrlC.waiting_for:
+            _CtrlC.pressed = False
+            raise KeyboardInterrupt         # also in place of an error the block raised: Ctrl-C came first
+
+
+@contextmanager
+def ctrl_c_stops_the_run(sim: "Simulator") -> Iterator[None]:
+    """While `sim` runs, Ctrl-C raises KeyboardInterrupt in the code running the simulator, never in a firmware
+    (which could catch it, or would count it as its own crash): the firmware it lands in is frozen where it was.
+
+    Only over Python's own Ctrl-C handler, from the main thread: a program with a handler of its own keeps it."""
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+
+    def interrupt(signum: int, frame: FrameType | None) -> None:
+        process = sim.running
+        if process is not None and greenlet.getcurrent() is process:
+            process.freeze(KeyboardInterrupt())
+        if _CtrlC.waiting_for:
+            _CtrlC.pressed = True
+            return
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)

@@ -54,7 +54,8 @@ def main():
     while True:
         if CANIsRxReady():                          # is your TX data in the RX buffer?
             RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
-            setcurGLCD(3, 1)
-            putsGLCD("A/D    %4d" % ((RxData[3] << 8) | RxData[4]))
+            if DataLen >= 5:                        # 01 02 03 ADRESH ADRESL: a shorter frame has no A/D value
+                setcurGLCD(3, 1)
+                putsGLCD("A/D    %4d" % ((RxData[3] << 8) | RxData[4]))
             setcurGLCD(4, 1)
             putsGLCD("RX ID  0x%03X" % RX_ID1)

@@ -65,5 +65,6 @@ def main():
                 putsGLCD("RX ID  0x%03X RTR" % RX_ID1)
             else:
                 putsGLCD("RX ID  0x%03X    " % RX_ID1)
-                setcurGLCD(3, 1)
-                putsGLCD("A/D    %4d" % ((RxData[3] << 8) | RxData[4]))
+                if DataLen >= 5:                        # 01 02 03 ADRESH ADRESL: a shorter frame has no A/D value
+                    setcurGLCD(3, 1)
+                    putsGLCD("A/D    %4d" % ((RxData[3] << 8) | RxData[4]))

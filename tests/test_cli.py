@@ -1,8 +1,17 @@
-"""The `appsim` command as a user types it: the demo, one board, the classroom, bad input."""
+"""The `appsim` command as a user types it: the demo, one board, the classroom, bad input; a firmware that stops,
+outputs that cannot be written, a full disk, Ctrl-C."""
 from __future__ import annotations
 
+import os
+import re
+import shutil
+import signal
+import struct
 import subprocess
 import sys
+import textwrap
+import threading
+import time
 from pathlib import Path
 
 import can
@@ -97,3 +106,167 @@ def test_monitor_opens_demo1s_port_and_closes_its_link(capsys):
     assert "Demo1 CAN monitor on the USB-CDC port socket://127.0.0.1:" in out
     assert "link outside (Virtual bus channel cli-monitor):" in out, "the link's report, printed as it closes"
     assert len(seen) > 5 and {m.arbitration_id for m in seen} >= {0x088, 0x100}
+
+
+# ------------------------------------------------------------------ a firmware that stops
+def write(folder: Path, name: str, source: str) -> Path:
+    path = folder / name
+    path.write_text("from appsim.firmware import *\n\n" + textwrap.dedent(source))
+    return path
+
+
+@pytest.mark.parametrize("source, said", [
+    ("def main():\n    GLCD_Initial()\n    x = 1023 // 0\n",
+     "station1 (crash.py) stopped: main() crashed at line 5 of crash.py (`x = 1023 // 0`): ZeroDivisionError"),
+    ("def main():\n    GLCD_Initial()\n", "station1 (crash.py) stopped: main() returned"),
+    ("def main():\n    raise KeyboardInterrupt\n",
+     "station1 (crash.py) stopped: main() crashed at line 4 of crash.py (`raise KeyboardInterrupt`): "
+     "KeyboardInterrupt"),
+])
+def test_board_says_where_its_firmware_stopped_and_exits_1(tmp_path, source, said):
+    write(tmp_path, "crash.py", source)
+    result = appsim("board", "crash.py", cwd=tmp_path)
+    assert result.returncode == 1 and said in result.stderr and "Traceback" not in result.stderr
+    assert "┌─────────────────────┐" in result.stdout, "the run's report as usual"
+
+
+def test_a_joined_firmware_that_hangs_inside_except_exception_stops_its_own_station_only(tmp_path):
+    hang = write(tmp_path, "hang.py", """\
+        MESSAGE_ID1 = 0x100
+
+        def main():
+            CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_VALID_STD_MSG)
+            while True:
+                try:
+                    while True:
+                        pass
+                except Exception:
+                    pass
+        """)
+    result = appsim("classroom", "--exercise", "2", "--join", str(hang), "--seconds", "1")
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert (f"station1 ({hang}) stopped: main() ran 2 s (wall time) at line 9 of hang.py (`while True:`) without "
+            "touching any register: an endless loop") in result.stderr
+    assert "station2       110  STD" in result.stdout, "the class goes on"
+
+
+def test_check_says_a_sleep_is_a_sleep_instead_of_hanging(tmp_path):
+    sleeper = write(tmp_path, "ex1.py", "import time\n\ndef main():\n    time.sleep(3600)\n")
+    result = appsim("check", "ex1", str(sleeper), "--seed", "1")
+    assert result.returncode == 1 and "EX1: 0/5" in result.stdout
+    assert "main() ran 2 s (wall time) at line 6 of ex1.py (`time.sleep(3600)`)" in result.stdout
+    assert "waiting: a sleep (time.sleep)" in result.stdout
+
+
+def test_an_outside_frame_shorter_than_a_students_firmware_reads_is_reported_in_the_workshops_words(tmp_path, capsys):
+    unguarded = tmp_path / "ex3.py"
+    unguarded.write_text((KIT / "solutions" / "ex3.py").read_text().replace("if DataLen >= 5:", "if True:"))
+    with can.Bus(interface="virtual", channel="cli-short") as peer:
+        later = threading.Timer(0.3, lambda: peer.send(can.Message(arbitration_id=0x088, data=[1],
+                                                                   is_extended_id=False)))
+        later.start()
+        status = main(["classroom", "--exercise", "3", "--join", str(unguarded), "--interface", "virtual",
+                       "--channel", "cli-short", "--seconds", "0.6"])
+        later.join()
+    err = capsys.readouterr().err
+    assert status == 1
+    assert ("station1 (" + str(unguarded) + ") stopped: main() crashed at line") in err
+    assert "IndexError: the frame had 1 data byte; check DataLen before reading RxData[3]" in err
+
+
+# ------------------------------------------------------------------ outputs: checked first, written as it goes
+@pytest.mark.parametrize("argv, complaint", [
+    (["classroom", "--log", "{tmp}/no/such/folder/trace.log"], "there is no directory {tmp}/no/such/folder"),
+    (["classroom", "--log", "{tmp}/trace.txt"], "cannot write a CAN log named trace.txt: use .log (candump)"),
+    (["board", "exercises/ex1.py", "--log", "{tmp}/folder.log"], "that is a directory"),
+    (["demo", "--out", "{tmp}/file/out"], "cannot write {tmp}/file/out"),
+])
+def test_an_output_that_cannot_be_written_is_refused_before_anything_runs(tmp_path, argv, complaint):
+    (tmp_path / "file").write_text("a file, not a folder")
+    (tmp_path / "folder.log").mkdir()
+    result = appsim(*(arg.format(tmp=tmp_path) for arg in argv), cwd=KIT)
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.startswith("appsim: ") and complaint.format(tmp=tmp_path) in result.stderr
+
+
+def private_tmpfs(tmp_path: Path, options: str, *argv: str) -> subprocess.CompletedProcess:
+    """`appsim ARGV` in a private mount namespace where DISK (in ARGV) is a fresh tmpfs mounted with `options`; what it
+    wrote there is copied to tmp_path/kept afterwards (the tmpfs goes with the namespace)."""
+    disk, kept = tmp_path / "disk", tmp_path / "kept"
+    disk.mkdir()
+    kept.mkdir()
+    script = ('mount -t tmpfs -o "$OPTIONS" appsim-test "$DISK" || exit 99\n'
+              '"$@"; status=$?\n'
+              'cp -r "$DISK"/. "$KEPT"/\n'
+              'exit $status\n')
+    command = ["unshare", "-m", "sh", "-c", script, "sh", sys.executable, "-m", "appsim",
+               *(arg.replace("DISK", str(disk)) for arg in argv)]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=KIT,
+                            env={**os.environ, "OPTIONS": options, "DISK": str(disk), "KEPT": str(kept)})
+    if result.returncode == 99:
+        pytest.skip(f"cannot mount a tmpfs in a private mount namespace here: {result.stderr.strip()}")
+    return result
+
+
+needs_root = pytest.mark.skipif(os.geteuid() != 0 or shutil.which("unshare") is None,
+                                reason="a private tmpfs needs root and unshare (util-linux)")
+
+
+@needs_root
+def test_a_read_only_place_is_refused_before_anything_runs(tmp_path):
+    result = private_tmpfs(tmp_path, "ro,size=64k", "classroom", "--log", "DISK/trace.log")
+    assert result.returncode == 2 and result.stdout == ""
+    assert f"cannot write {tmp_path}/disk/trace.log: that file system is read-only" in result.stderr
+
+
+@needs_root
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf", ".csv"])
+def test_a_full_disk_ends_the_log_at_its_last_whole_frame_and_says_so(tmp_path, suffix):
+    result = private_tmpfs(tmp_path, "size=64k", "classroom", "--exercise", "2", "--seconds", "600",
+                           "--log", f"DISK/trace{suffix}")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    said = re.search(rf"appsim: cannot write {tmp_path}/disk/trace\{suffix}: the disk is full\. The log holds the "
+                     r"run's first (\d+) frames, each one whole", result.stderr)
+    assert said, result.stderr
+    logged = list(can.LogReader(tmp_path / "kept" / f"trace{suffix}"))
+    assert len(logged) == int(said[1]) > 100
+
+
+# ------------------------------------------------------------------ Ctrl-C
+def interrupt(tmp_path: Path, log: Path, *argv: str) -> tuple[int, str]:
+    """Start `appsim ARGV`, press Ctrl-C once `log` reads back 20 frames: the exit status, the last line of stderr."""
+    with (tmp_path / "stdout").open("w") as out:
+        process = subprocess.Popen([sys.executable, "-m", "appsim", *argv], stdout=out, stderr=subprocess.PIPE,
+                                   text=True, cwd=KIT)
+        try:
+            while len(read_back(log)) < 20:
+                assert process.poll() is None, process.stderr.read()
+                time.sleep(0.05)
+            process.send_signal(signal.SIGINT)
+            _, err = process.communicate(timeout=60)
+        finally:
+            process.kill()
+    assert "Traceback" not in err, err
+    return process.returncode, err.strip().splitlines()[-1]
+
+
+def read_back(log: Path) -> list[can.Message]:
+    try:
+        return list(can.LogReader(log))
+    except (OSError, ValueError, struct.error, can.CanError):       # not there yet, or only its header so far
+        return []
+
+
+@pytest.mark.parametrize("argv, log", [
+    (["demo", "--seconds", "600", "--out", "{tmp}/out"], "out/trace.log"),
+    (["classroom", "--seconds", "3600", "--log", "{tmp}/trace.blf"], "trace.blf"),
+    (["classroom", "--seconds", "3600", "--log", "{tmp}/trace.asc", "--interface", "virtual", "--channel", "ctrl-c"],
+     "trace.asc"),
+    (["monitor", "--seconds", "3600", "--log", "{tmp}/trace.log", "--transport", "socket"], "trace.log"),
+], ids=["demo", "classroom", "linked classroom", "monitor"])
+def test_ctrl_c_ends_with_one_line_and_130_and_the_log_reads_back_to_its_last_frame(tmp_path, argv, log):
+    status, last = interrupt(tmp_path, tmp_path / log, *(arg.format(tmp=tmp_path) for arg in argv))
+    said = re.fullmatch(rf"appsim {argv[0]}: interrupted \(Ctrl-C\) at [\d.]+ s of simulated time; "
+                        rf"{tmp_path / log} holds its first (\d+) frames.*", last)
+    assert status == 130 and said, last
+    assert len(read_back(tmp_path / log)) == int(said[1])

@@ -24,7 +24,7 @@ def show(world, main: Callable[[], None], seconds: float = 0.05) -> APP023:
 def crash(world, main: Callable[[], None]) -> BaseException:
     board = APP023(world.bus, "station0")
     board.run(main)
-    world.sim.run(until=world.sim.now + 10**9)
+    world.sim.run(until=world.sim.now + 10**10)         # 10 ms: GLCD_Initial() alone takes 2.6 ms
     assert board.mcu.process.failure is not None, "the firmware should have stopped with an error"
     return board.mcu.process.failure
 

@@ -1,13 +1,23 @@
-"""The CANKing-like monitor: trace lines, bus load, error counters, and logs other CAN tools open."""
+"""The CANKing-like monitor: trace lines, bus load, error counters, logs other CAN tools open, written as the bus runs;
+the trace kept in memory is a window, the counts and the log are whole."""
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 
 import can
 import pytest
 
-from appsim.bus.monitor import HEADER, bus_load, error_counters, format_event, summary, write_log
+from appsim.bus.monitor import (LOG_FORMATS, HEADER, LiveTrace, TraceLog, bus_load, error_counters, format_event,
+                                summary, write_log)
+from appsim.bus.trace import TRACE_WINDOW
+from appsim.bus.wire import Bus
+from appsim.can.bits import INTERMISSION_BITS
+from appsim.errors import OutputError
+from appsim.workshop import checks
+from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES
+from conftest import World
 from test_bus_gotchas import normal_node
 from appsim.firmware import *  # noqa: F403
 
@@ -47,7 +57,7 @@ def test_error_counters_show_an_ack_error_victim(world):
     assert table[2].split() == ["listener", "listen-only", "0", "0", "error-active"]
 
 
-@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
+@pytest.mark.parametrize("suffix", sorted(LOG_FORMATS))
 def test_logs_read_back_with_python_can(traffic, tmp_path, suffix):
     path = write_log(traffic.bus.trace, tmp_path / f"trace{suffix}")
     messages = list(can.LogReader(path))
@@ -65,5 +75,52 @@ def test_candump_log_is_read_by_can_utils(traffic, tmp_path):
 
 
 def test_unknown_log_format_says_which_ones_work(traffic, tmp_path):
-    with pytest.raises(ValueError, match=r"\.log \(candump\)"):
+    with pytest.raises(OutputError, match=r"\.log \(candump\)"):
         write_log(traffic.bus.trace, tmp_path / "trace.xyz")
+
+
+@pytest.mark.parametrize("suffix", sorted(LOG_FORMATS))
+def test_a_log_is_on_disk_frame_by_frame_as_the_bus_runs(traffic, tmp_path, suffix):
+    """What a kill or a crash would leave: after each frame, the file as it is reads back to that frame."""
+    path = tmp_path / f"trace{suffix}"
+    log = TraceLog(path)
+    for n, event in enumerate(traffic.bus.trace, start=1):
+        log.write(event)
+        assert [m.arbitration_id for m in can.LogReader(path)] == [e.frame.can_id for e in traffic.bus.trace[:n]]
+    log.close()
+
+
+@pytest.mark.parametrize("path, complaint", [
+    ("no/such/folder/trace.log", "there is no directory"),
+    ("folder.log", "that is a directory"),
+    ("trace.trc", "use .log (candump), .asc (Vector), .blf (Vector binary) or .csv"),
+])
+def test_a_log_that_cannot_be_written_is_refused_when_opened(tmp_path, path, complaint):
+    (tmp_path / "folder.log").mkdir()
+    with pytest.raises(OutputError, match=re.escape(complaint)):
+        TraceLog(tmp_path / path)
+
+
+def test_the_trace_keeps_a_window_and_the_counts_and_the_listeners_get_everything():
+    world = World()
+    world.bus = Bus(world.sim, CLASSROOM_BIT_RATE, trace_window=2)
+    everything = []
+    world.bus.trace.listeners.append(everything.append)
+    live = LiveTrace(world.bus)
+    world.node("a", normal_node([(0x100 + n, CAN_TX_STD_FRAME) for n in range(3)], delay_ms=1))
+    world.node("b", normal_node())
+    world.run(0.01)
+    trace = world.bus.trace
+    assert len(everything) == 3 and list(trace) == everything[1:] and trace.dropped == 1
+    assert "3 frames, 0 error frames" in summary(world.bus)
+    assert live.new_lines() == [f"{'':>11}  ... frames not kept in memory: 1 (the trace keeps the last 2; a log keeps "
+                                "every one)", *map(format_event, everything[1:])]
+
+
+def test_a_checks_whole_run_fits_in_the_trace_window():
+    """Checks read `bus.trace` after runs of at most a second: the window holds more events than the classroom bus can
+    carry in the longest, even if every one were the shortest error frame (cut at bit 10, flags and delimiter)."""
+    longest_s = max(getattr(getattr(checks, name), "SECONDS", 0) for name in EXERCISE_FILES)
+    shortest_event_bits = 10 + 2 * 6 + 8 + INTERMISSION_BITS
+    most_events = longest_s * CLASSROOM_BIT_RATE / shortest_event_bits
+    assert longest_s >= 1.0 and TRACE_WINDOW > 4 * most_events

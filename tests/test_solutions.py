@@ -1,14 +1,20 @@
-"""Each exercise's solution in the classroom does what the workshop expects; each starter runs."""
+"""Each exercise's solution in the classroom does what the workshop expects; each starter runs; no frame from outside
+stops a board, and reading past a short frame's data is reported in the workshop's words."""
 from __future__ import annotations
 
 import itertools
 import random
+from collections import Counter
 
 import pytest
+from outside import Outside, every_frame
 from workshop import KIT, MS, classroom, payload, sent
 
-from appsim.workshop.classroom import Classroom
+from appsim.can.frame import CanFrame
 from appsim.chip.ecan.controller import Mode
+from appsim.sim import PS_PER_SECOND
+from appsim.workshop.classroom import Classroom
+from appsim.workshop.faults import board_fault
 
 TIMER1_PERIOD_PS = 65536 * 8 * 100_000        # 1:8 of Fosc/4 at 40 MHz: 52.4288 ms
 
@@ -186,3 +192,44 @@ def test_each_starter_runs_in_the_classroom_without_crashing(exercise):
     room = classroom(exercise, firmware_dir=KIT / "exercises")
     room.run(0.5)      # raises with the traceback if any board's firmware crashed
     assert all(board.glcd.line(1).startswith(f"EX{exercise}") for board in room.stations.values())
+
+
+# ------------------------------------------------------------------ what an outside node sends
+@pytest.mark.parametrize("folder", ["solutions", "exercises"])
+@pytest.mark.parametrize("exercise", range(1, 7))
+def test_every_frame_an_outside_node_can_send_leaves_the_classroom_running(folder, exercise):
+    """Short frames, long DLCs, remote frames, extended IDs, on every ID a filter lets in: no board stops, and the
+    master's polls are answered after them as before (the starters guard RxData as the solutions do)."""
+    room = classroom(exercise, firmware_dir=KIT / folder)
+    outside = Outside(room.bus)
+    room.run(0.12)                                  # Ex4..Ex6 stations have heard 0x088 and gone on the bus
+    frames = every_frame()
+    outside.send(*frames)
+    room.run(2.0)                                   # raises with the traceback if any board's firmware stopped
+    carried = Counter(e.frame for e in room.bus.frames())
+    assert not Counter(frames) - carried, "every outside frame went through (one the master sent too counts once)"
+    from_outside = [e for e in room.bus.frames() if e.sender == "outside"]
+    assert all(board.mcu.process is not None and not board.mcu.process.finished for board in room.boards)
+    if folder == "solutions" and exercise == 6:
+        after = max(e.end_ps for e in from_outside)
+        answered = {e.frame.can_id for e in sent(room, "master", remote=True) if e.start_ps > after} & {
+            e.frame.can_id for e in room.bus.frames() if e.start_ps > after and not e.frame.remote}
+        assert answered, "the master's polls are answered after the outside frames"
+
+
+def test_reading_past_a_short_frame_is_reported_in_the_workshops_words(tmp_path):
+    unguarded = tmp_path / "ex3.py"
+    unguarded.write_text((KIT / "solutions" / "ex3.py").read_text().replace("if DataLen >= 5:", "if True:"))
+    room = classroom(3)
+    room.join(unguarded, station=1)
+    outside = Outside(room.bus)
+    room.run(0.12)
+    outside.send(CanFrame(0x088, b"\x01"))
+    room.bus.sim.run(until=round(0.2 * PS_PER_SECOND))
+    line = next(n for n, text in enumerate(unguarded.read_text().splitlines(), 1) if "RxData[3]" in text)
+    fault = board_fault(room.station(1).mcu.process)
+    assert fault is not None and fault.kind == "exception"
+    assert fault.message.startswith(f"main() crashed at line {line} of ex3.py (`putsGLCD(\"A/D    %4d\" % ((RxData[3] "
+                                    "<< 8) | RxData[4]))`): IndexError: the frame had 1 data byte; check DataLen "
+                                    "before reading RxData[3]")
+    assert all(board.mcu.process.failure is None for board in room.boards[2:]), "the other stations go on"

@@ -4,6 +4,7 @@ Not register level: the C driver bit-bangs ports; here each driver operation cos
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -27,6 +28,7 @@ BYTE_CYCLES = 25
 CHARACTER_CYCLES = 6 * BYTE_CYCLES          # 5 glyph columns + 1 blank column: 150 Tcy = 15 µs
 CURSOR_CYCLES = 2 * BYTE_CYCLES             # set page (line) and column address
 INITIAL_CYCLES = 10 * BYTE_CYCLES + WIDTH_PX * LINES * BYTE_CYCLES   # set-up commands, then clear 1024 bytes
+HISTORY_WRITES = 10_000                     # the writes `history` keeps, the latest (a long run's would fill memory)
 
 
 class Write(NamedTuple):
@@ -54,7 +56,7 @@ class GLCD:
         self._codes = [[0x20] * COLUMNS for _ in range(LINES)]
         self._line = 0
         self._column = 0
-        self.history: list[Write] = []
+        self.history: deque[Write] = deque(maxlen=HISTORY_WRITES)
 
     # -------------------------------------------------------------- what the firmware's GLCD library does
     def initial(self) -> None:

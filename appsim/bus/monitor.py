@@ -1,17 +1,26 @@
 """The bus monitor the workshop used CANKing for: a trace of every frame and error frame, bus load,
-each node's error counters, and logs in python-can's file formats (candump .log, .asc, .blf ...).
+each node's error counters, and logs in python-can's file formats (candump .log, .asc, .blf ...), written as it runs.
 """
 from __future__ import annotations
 
+import errno
+import io
+import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import can
 
 from appsim.bus.wire import Bus, BusEvent
+from appsim.errors import OutputError
 from appsim.sim import PS_PER_SECOND
+from appsim.watchdog import ctrl_c_waits
 
 HEADER = f"{'time (s)':>11}  {'sender':<9} {'ID':>8}  {'type':<8} DLC  {'data':<23}  ACK by / error"
+# The formats a trace is logged in, by the file's suffix: python-can writes them and `can.LogReader` reads them back
+# (not .trc: python-can's TRC writer leaves remote frames out).
+LOG_FORMATS: dict[str, type[can.io.generic.FileIOMessageWriter]] = {
+    ".log": can.CanutilsLogWriter, ".asc": can.ASCWriter, ".blf": can.BLFWriter, ".csv": can.CSVWriter}
 
 
 def format_event(event: BusEvent) -> str:
@@ -45,11 +54,11 @@ def error_counters(bus: Bus) -> str:
     return "\n".join(lines)
 
 
-def summary(bus: Bus, start_ps: int = 0) -> str:
-    trace = bus.trace
-    good = sum(1 for e in trace if e.ok)
-    load = bus_load(trace, start_ps, bus.sim.now) if bus.sim.now > start_ps else 0.0
-    return (f"{good} frames, {len(trace) - good} error frames in {(bus.sim.now - start_ps) / PS_PER_SECOND:.3f} s; "
+def summary(bus: Bus) -> str:
+    """Frames, error frames and bus load over the whole run (not only what the trace keeps)."""
+    trace, now = bus.trace, bus.sim.now
+    load = trace.busy_ps / now if now > 0 else 0.0
+    return (f"{trace.frames} frames, {trace.errors} error frames in {now / PS_PER_SECOND:.3f} s; "
             f"bus load {load:.1%} at {bus.bit_rate // 1000} kbit/s")
 
 
@@ -61,9 +70,16 @@ class LiveTrace:
         self.seen = 0
 
     def new_lines(self) -> list[str]:
-        events = self.bus.trace[self.seen:]
-        self.seen += len(events)
-        return [format_event(event) for event in events]
+        """The new events' lines; first, if some went out of the trace's window unseen, a line that says how many."""
+        trace = self.bus.trace
+        events = trace.since(self.seen)
+        missed = trace.total - self.seen - len(events)
+        self.seen = trace.total
+        lines = [format_event(event) for event in events]
+        if missed:
+            lines.insert(0, f"{'':>11}  ... frames not kept in memory: {missed} (the trace keeps the last "
+                            f"{trace.window}; a log keeps every one)")
+        return lines
 
 
 def to_message(event: BusEvent, channel: str | int) -> can.Message:
@@ -76,15 +92,138 @@ def to_message(event: BusEvent, channel: str | int) -> can.Message:
                        data=frame.data, channel=channel)
 
 
+class _WholeRecords(io.RawIOBase):
+    """The file under a python-can writer. What the writer writes waits here until `commit()` gives it to the operating
+    system in one go, so the file grows by whole records only; a write that fails (a full disk) cuts the file back to
+    its last whole record."""
+
+    def __init__(self, path: Path):
+        super().__init__()
+        self.name = str(path)
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        self._pending = bytearray()
+        self._position = 0              # the operating system's file position
+        self._whole = 0                 # the file's length after the last commit
+
+    def writable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def write(self, data: bytes) -> int:    # type: ignore[override]
+        self._pending += data
+        return len(data)
+
+    def tell(self) -> int:
+        return self._position + len(self._pending)
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        self.commit()
+        self._position = os.lseek(self._fd, offset, whence)
+        return self._position
+
+    def commit(self) -> None:
+        """Write everything pending; if that fails, the file is cut back to what the last commit left, and it raises."""
+        pending, self._pending = bytes(self._pending), bytearray()
+        try:
+            done = 0
+            while done < len(pending):
+                done += os.write(self._fd, pending[done:])
+        except OSError:
+            os.ftruncate(self._fd, self._whole)
+            self._position = os.lseek(self._fd, self._whole, os.SEEK_SET)
+            raise
+        self._position += len(pending)
+        self._whole = max(self._whole, self._position)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        try:
+            self.commit()
+        finally:
+            os.close(self._fd)
+            super().close()
+
+
+def cannot_write(path: Path, error: OSError) -> OutputError:
+    """The error for a file the kit cannot write, in words that say what to do."""
+    reason = {errno.ENOENT: f"there is no directory {path.parent}: create it first, or give another path",
+              errno.ENOSPC: "the disk is full",
+              errno.EDQUOT: "the disk quota is used up",
+              errno.EROFS: "that file system is read-only: give a path where you can write",
+              errno.EACCES: "no permission to write there: give a path where you can write",
+              errno.EISDIR: "that is a directory: give a file name such as trace.log"}.get(error.errno or 0)
+    reason = reason or error.strerror or str(error)
+    return OutputError(f"cannot write {path}: {reason}")
+
+
+class TraceLog:
+    """A CAN log in the format its file's suffix names (`LOG_FORMATS`), written by python-can's writer as the bus
+    carries each event, each record handed to the operating system whole as it happens: a run cut short (Ctrl-C, a
+    crash, a kill) leaves a log that `can.LogReader` reads to its last frame, and a full disk ends the log at its last
+    whole record with an `OutputError` that says so. Opening it is the check that the path can be written."""
+
+    def __init__(self, path: str | Path, *, channel: str = "vcan0"):
+        self.path = Path(path)
+        self.written = 0                 # events in the log
+        suffix = self.path.suffix.lower()
+        if suffix not in LOG_FORMATS:
+            raise OutputError(f"cannot write a CAN log named {self.path.name}: use .log (candump), .asc (Vector), "
+                              ".blf (Vector binary) or .csv")
+        try:
+            self._file = _WholeRecords(self.path)
+        except OSError as error:
+            raise cannot_write(self.path, error) from None
+        self._channel: str | int = channel if suffix == ".log" else 1
+        self._writer: can.io.generic.FileIOMessageWriter
+        if suffix == ".blf":            # one container per frame: stored, as there is nothing to compress in one
+            self._writer = can.BLFWriter(self._file, compression_level=0)
+        else:
+            text = io.TextIOWrapper(self._file, encoding="utf-8", write_through=True)
+            writer = LOG_FORMATS[suffix]
+            self._writer = writer(text, channel=channel) if suffix == ".log" else writer(text)
+        self._closed = False
+        self._commit()                  # the format's header: a full disk shows now, before the run
+
+    def write(self, event: BusEvent) -> None:
+        """One more event in the log, given to the operating system before this returns; Ctrl-C waits for it."""
+        with ctrl_c_waits():
+            self._writer.on_message_received(to_message(event, self._channel))
+            if isinstance(self._writer, can.BLFWriter):
+                self._writer._flush()       # the writer's own buffer would hold 128 kB of frames back
+            self._commit()
+            self.written += 1
+
+    def _commit(self) -> None:
+        try:
+            self._file.commit()
+        except OSError as error:
+            self.close()
+            holds = f". The log holds the run's first {self.written} frames, each one whole" if self.written else ""
+            raise OutputError(f"{cannot_write(self.path, error)}{holds}") from None
+
+    def close(self) -> None:
+        """End the log as its format ends (ASC's last line, BLF's header): after a failed write, as far as it goes."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.stop()
+        except OSError:
+            pass                        # the file was cut back to its last whole record
+
+    def __enter__(self) -> TraceLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 def write_log(events: Iterable[BusEvent], path: str | Path, *, channel: str = "vcan0") -> Path:
-    """Write the trace in the format the file's suffix names: .log (candump -L), .asc, .blf, .csv, .trc ..."""
-    path = Path(path)
-    try:
-        writer = can.Logger(path, channel=channel) if path.suffix == ".log" else can.Logger(path)
-    except ValueError as error:
-        raise ValueError(f"cannot write a CAN log named {path.name}: {error}. "
-                         "Use .log (candump), .asc (Vector), .blf (Vector binary), .csv or .trc") from None
-    with writer:
+    """Write a trace in the format the file's suffix names: .log (candump -L), .asc, .blf or .csv."""
+    with TraceLog(path, channel=channel) as log:
         for event in events:
-            writer.on_message_received(to_message(event, channel if path.suffix == ".log" else 1))
-    return path
+            log.write(event)
+    return log.path

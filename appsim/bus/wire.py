@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Protocol
 
+from appsim.bus.trace import TRACE_WINDOW, Trace
 from appsim.can.bits import INTERMISSION_BITS, frame_bits
 from appsim.can.bittiming import BitTiming, BitTimingError
 from appsim.chip.ecan.controller import ECAN, Mode
@@ -194,9 +195,12 @@ def oscillator_tolerance(timing: BitTiming) -> Fraction:
 
 
 class Bus:
-    """The wire and its protocol engine: every attached node's ECAN is driven from here."""
+    """The wire and its protocol engine: every attached node's ECAN is driven from here.
 
-    def __init__(self, sim: Simulator, bit_rate: int = 125_000):
+    `trace` (and `loopback_trace`) keep the last `trace_window` events in memory (every one if None), with counts over
+    the whole run; a log listening to `trace.listeners` keeps every event."""
+
+    def __init__(self, sim: Simulator, bit_rate: int = 125_000, *, trace_window: int | None = TRACE_WINDOW):
         if PS_PER_SECOND % bit_rate:
             raise ValueError(f"a bus bit rate of {bit_rate} bit/s has no whole bit time in picoseconds")
         self.sim = sim
@@ -208,8 +212,8 @@ class Bus:
         sim.quiet_until = lambda: self.busy_until
         self.ports: list[_Port] = []
         self._by_ecan: dict[int, _BoardPort] = {}
-        self.trace: list[BusEvent] = []
-        self.loopback_trace: list[BusEvent] = []
+        self.trace = Trace(trace_window)
+        self.loopback_trace = Trace(trace_window)        # frames a node in Loopback mode sent itself
         self.busy_until = 0          # end of the intermission after the last frame or error frame
         self._arbitration: Timer | None = None
         self._idle_timer: Timer | None = None
@@ -518,7 +522,7 @@ class Bus:
 
     # ------------------------------------------------------------------ reading the trace
     def frames(self) -> list[BusEvent]:
-        """The frames that went through (ACKed, no error)."""
+        """The frames that went through (ACKed, no error), of those the trace keeps (see `Trace`)."""
         return [event for event in self.trace if event.ok]
 
 

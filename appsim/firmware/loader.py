@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import itertools
 import linecache
+import re
 import traceback
 from collections.abc import Mapping
 from pathlib import Path
@@ -15,6 +16,7 @@ from types import ModuleType
 from appsim.errors import FirmwareError
 
 _loads = itertools.count()
+TRACEBACK_FRAMES = 50           # of a failing firmware, the innermost a report looks at (a recursion has thousands)
 
 
 def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
@@ -121,9 +123,42 @@ def _apply_defines(tree: ast.Module, defines: Mapping[str, int], path: Path) -> 
 
 def crash_message(error: BaseException, filename: str | None) -> str:
     """What a student reads when main() raised `error`: the line of their own file it came from, the error as
-    Python words it (with its "Did you mean ...?"), and what that means for the board."""
-    report = traceback.TracebackException.from_exception(error)
+    Python words it (with its "Did you mean ...?") or, for a frame's data read past its DLC, as the workshop would,
+    and what that means for the board."""
+    report = traceback.TracebackException.from_exception(error, limit=-TRACEBACK_FRAMES)
     mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
-    what = list(report.format_exception_only())[-1].strip()
-    return f"main() crashed{place}: {what}\nThe board stopped there, so nothing after it can be judged."
+    what = _past_the_data(error, filename) or list(report.format_exception_only())[-1].strip()
+    return f"main() crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+
+
+_SUBSCRIPT = re.compile(r"\b([A-Za-z_]\w*)\[\s*(-?\w+)\s*\]")      # RxData[3], RxData[i]
+
+
+def _past_the_data(error: BaseException, filename: str | None) -> str | None:
+    """For an IndexError from reading a received frame's data (CANReceiveMessage's bytes, DataLen of them) past its
+    end, on a line of the student's file: that, in the workshop's words. Nothing is evaluated: names are looked up."""
+    if not isinstance(error, IndexError) or filename is None or error.__traceback__ is None:
+        return None
+    innermost = error.__traceback__
+    while innermost.tb_next is not None:
+        innermost = innermost.tb_next
+    frame = innermost.tb_frame
+    if frame.f_code.co_filename != filename:
+        return None
+    for match in _SUBSCRIPT.finditer(linecache.getline(filename, innermost.tb_lineno)):
+        name, index = match.groups()
+        data = frame.f_locals.get(name, frame.f_globals.get(name))
+        number = _integer(index, frame.f_locals.get(index, frame.f_globals.get(index)))
+        if isinstance(data, bytes) and len(data) <= 8 and number is not None and not -len(data) <= number < len(data):
+            return (f"IndexError: the frame had {len(data)} data byte{'' if len(data) == 1 else 's'}; "
+                    f"check DataLen before reading {name}[{index}]")
+    return None
+
+
+def _integer(text: str, value: object) -> int | None:
+    """The index `text` as a number: a literal (3, 0x03), else the integer the name holds."""
+    try:
+        return int(text, 0)
+    except ValueError:
+        return value if isinstance(value, int) and not isinstance(value, bool) else None

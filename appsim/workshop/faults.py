@@ -5,9 +5,13 @@ The same faults come from a run in the notebook (`check`) and from the grader's 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from appsim.errors import FirmwareHung
 from appsim.firmware.loader import crash_message
+
+if TYPE_CHECKING:
+    from appsim.sim import Process
 
 # The kinds, as the gradebook's `fault` column names them (docs/grading.md explains each).
 KINDS = ("missing", "symlink", "unreadable", "load", "station", "exception", "returned", "exited", "stalled",
@@ -34,6 +38,8 @@ class FirmwareFault(RuntimeError):
         self.fault = fault
 
 
+RETURNED = Fault("returned", "main() returned: firmware has nowhere to return to, so main() must loop forever "
+                             "(`while True:` around the work, as `while(1)` in EX1.C's main()).")
 EXITED = Fault("exited", "the firmware exited (sys.exit, os._exit, or its process ended) while the board was running "
                          "it: firmware never exits; main() loops forever, as main() does in EX1.C")
 
@@ -55,3 +61,10 @@ def fault_of(failure: BaseException, filename: str | None) -> Fault:
         return Fault("memory", "the firmware ran out of memory (MemoryError): a list or string that grows "
                                "without end in the main loop?")
     return Fault("exception", crash_message(failure, filename))
+
+
+def board_fault(process: Process) -> Fault | None:
+    """Why a board's firmware is no longer running, if it is not: what it raised (see `fault_of`), or it returned."""
+    if process.failure is not None:
+        return fault_of(process.failure, process.filename)
+    return RETURNED if process.finished else None

@@ -14,7 +14,7 @@ from appsim.chip.sfr import current_mcu
 from appsim.errors import SandboxUnavailable
 from appsim.firmware.glcd import NO_GLCD
 from appsim.workshop.checks.trial import Fatal, Firmware
-from appsim.workshop.faults import EXITED, Fault, FirmwareFault, stalled
+from appsim.workshop.faults import EXITED, RETURNED, Fault, FirmwareFault, stalled
 from appsim.workshop.sandbox import protocol as wire
 from appsim.workshop.sandbox.children import DEFAULT_LIMITS, Child, Limits, Sandbox
 from appsim.workshop.sandbox.protocol import Access, ProtocolError
@@ -204,8 +204,7 @@ class SandboxedFirmware:
     def _ending(self, kind: bytes, data: bytes) -> Fault | None:
         """The fault a child's closing message says (ProtocolError if it is not one), or None if it is none."""
         if kind == wire.RETURNED:
-            return Fault("returned", "main() returned: firmware has nowhere to return to, so main() must loop forever "
-                                     "(`while True:` around the work, as `while(1)` in EX1.C's main()).")
+            return RETURNED
         if kind == wire.RAISED:
             return Fault("exception", wire.decode_text(data))
         if kind == wire.OUT_OF_MEMORY:
