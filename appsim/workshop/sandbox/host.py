@@ -21,6 +21,8 @@ from appsim.workshop.sandbox.protocol import Access, ProtocolError
 
 __all__ = ["DEFAULT_LIMITS", "Limits", "Sandbox", "SandboxedFirmware"]
 
+READ_AHEAD_REGISTERS = 6          # a read-ahead offers the registers read last, at most this many (a polling loop's)
+
 
 # ====================================================================== a firmware file, run in a child
 
@@ -38,7 +40,8 @@ class SandboxedFirmware:
         self.round_trips = 0
         self._child: Child | None = None
         self._error: Exception | None = None
-        self._reads: set[int] = set()   # the registers the firmware has read: those a read-ahead offers
+        # The registers the firmware read last, most recent last: those a read-ahead offers (a polling loop's).
+        self._reads: dict[int, None] = {}
 
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
@@ -107,7 +110,7 @@ class SandboxedFirmware:
                             self._error = error
                         else:
                             self.round_trips += 1
-                            self._reads.add(address)
+                            self._recent(address)
                             try:
                                 channel.send(self._answer(mcu, value))
                             except OSError:
@@ -149,7 +152,7 @@ class SandboxedFirmware:
                 try:
                     if op is wire.READ:
                         value = mcu.read(first, second)
-                        self._reads.add(first)
+                        self._recent(first)
                     elif op is wire.WRITE:
                         mcu.write(first, second)
                     elif op is wire.SPEND:
@@ -165,6 +168,13 @@ class SandboxedFirmware:
                 return self._answer(mcu, value) if op is wire.READ else wire.DONE
         return None
 
+    def _recent(self, address: int) -> None:
+        reads = self._reads
+        reads.pop(address, None)
+        reads[address] = None
+        if len(reads) > READ_AHEAD_REGISTERS:
+            del reads[next(iter(reads))]
+
     def _answer(self, mcu: PIC18F8680, value: int) -> bytes:
         """A read's answer, with what the firmware may read next without asking (see PIC18F8680.read_ahead)."""
         ahead = mcu.read_ahead(self._reads)
@@ -179,7 +189,7 @@ class SandboxedFirmware:
         assert process is not None
         expected = process.local_time + mcu.access_ps
         value = mcu.read(address, site)
-        self._reads.add(address)
+        self._recent(address)
         if value != used or process.local_time != expected:
             raise ProtocolError(f"a read of register 0x{address:03X} it answered itself with {used}, where the "
                                 f"board reads {value}" + ("" if process.local_time == expected else
