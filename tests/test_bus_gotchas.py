@@ -1,7 +1,7 @@
 """Bus-level behaviour the workshop relies on: ACK, arbitration, fault confinement, silent modes."""
 from __future__ import annotations
 
-from appsim.chip.ecan.controller import Mode
+from appsim.bus.controller import Mode
 from appsim.firmware import *  # noqa: F403
 
 CLASSROOM = (4, 10, 8, 4, 3)

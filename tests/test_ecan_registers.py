@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 from appsim.chip.ecan import registers as R
-from appsim.chip.ecan.controller import ECAN, Mode
+from appsim.bus.controller import Mode
+from appsim.chip.ecan.controller import ECAN
 from appsim.can.frame import CanFrame
 
 

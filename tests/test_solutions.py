@@ -11,7 +11,7 @@ from outside import Outside, every_frame
 from workshop import KIT, MS, classroom, payload, sent
 
 from appsim.can.frame import CanFrame
-from appsim.chip.ecan.controller import Mode
+from appsim.bus.controller import Mode
 from appsim.sim import PS_PER_SECOND
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.faults import board_fault

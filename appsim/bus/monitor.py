@@ -45,12 +45,12 @@ def bus_load(trace: Sequence[BusEvent], start_ps: int, end_ps: int) -> float:
 def error_counters(bus: Bus) -> str:
     """Each board's TEC, REC and error state, as CANKing's node status shows them."""
     lines = [f"{'node':<10} {'mode':<12} {'TEC':>4} {'REC':>4}  state"]
-    for mcu in bus.boards():
-        ecan = mcu.ecan
-        state = ("bus-off" if ecan.bus_off else "error-passive" if ecan.error_passive
-                 else "warning" if max(ecan.tec, ecan.rec) >= 96 else "error-active")
-        mode = ecan.opmode.name.lower().replace("_", "-")
-        lines.append(f"{mcu.name:<10} {mode:<12} {ecan.tec:>4} {ecan.rec:>4}  {state}")
+    for node in bus.boards():
+        can = node.controller
+        state = ("bus-off" if can.bus_off else "error-passive" if can.error_passive
+                 else "warning" if max(can.tec, can.rec) >= 96 else "error-active")
+        mode = can.opmode.name.lower().replace("_", "-")
+        lines.append(f"{node.name:<10} {mode:<12} {can.tec:>4} {can.rec:>4}  {state}")
     return "\n".join(lines)
 
 

@@ -8,14 +8,13 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import Protocol
+from typing import Protocol, TypeVar
 
+from appsim.bus.controller import Controller, Mode, Node
 from appsim.bus.trace import TRACE_WINDOW, Trace
 from appsim.can.bits import INTERMISSION_BITS, frame_bits
 from appsim.can.bittiming import BitTiming, BitTimingError
-from appsim.chip.ecan.controller import ECAN, Mode
 from appsim.can.frame import CanFrame
-from appsim.chip.mcu import PIC18F8680
 from appsim.sim import PS_PER_SECOND, Simulator, Timer
 
 ERROR_FLAG_BITS = 6
@@ -23,6 +22,8 @@ ERROR_DELIMITER_BITS = 8
 SUSPEND_TRANSMISSION_BITS = 8
 BUS_IDLE_BITS = 11                  # mode changes, bus-off recovery: 11 consecutive recessive bits
 DESTROYED_AT_BIT = 10               # where a node at the wrong bit rate typically flags a stuff error
+
+AnyNode = TypeVar("AnyNode", bound=Node)
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,73 +73,62 @@ class _Port(Protocol):
         """A frame went through: take it; returns what the node did with it, for the trace."""
     def receive_error(self, rec_increment: int) -> None: ...
     def activity(self) -> None: ...
-    def notify(self) -> None: ...
 
 
 @dataclass(eq=False)
-class _BoardPort(_Port):
-    """A PIC18F8680's ECAN module on the bus."""
+class _NodePort(_Port):
+    """A node's controller on the bus, with what the wire keeps about it (its rate, its suspend and loopback times)."""
 
-    mcu: PIC18F8680
+    node: Node
     rate_ok: bool = True
     suspend_until: int = 0
     loop_busy_until: int = 0
     mode_timer: Timer | None = None
-    ecan: ECAN = field(init=False, repr=False)
+    controller: Controller = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self.ecan = self.mcu.ecan
+        self.controller = self.node.controller
 
     @property
     def name(self) -> str:
-        return self.mcu.name
+        return self.controller.name
 
     @property
     def mode(self) -> Mode:
-        return self.ecan.opmode
+        return self.controller.opmode
 
     @property
     def bus_off(self) -> bool:
-        return self.ecan.bus_off
+        return self.controller.bus_off
 
     @property
     def error_passive(self) -> bool:
-        return self.ecan.error_passive
+        return self.controller.error_passive
 
     def pending(self) -> tuple[str, CanFrame] | None:
-        buffer = self.ecan.next_transmission()
-        return None if buffer is None else (buffer, self.ecan.frame_in(buffer))
+        buffer = self.controller.next_transmission()
+        return None if buffer is None else (buffer, self.controller.frame_in(buffer))
 
     def started(self, buffer: str) -> None:
-        self.ecan.transmission_started(buffer)
+        self.controller.transmission_started(buffer)
 
     def lost(self, buffer: str) -> None:
-        self.ecan.arbitration_lost(buffer)
-        self.mcu.changed()
+        self.controller.arbitration_lost(buffer)
 
     def succeeded(self, buffer: str) -> None:
-        self.ecan.transmission_succeeded(buffer)
+        self.controller.transmission_succeeded(buffer)
 
     def failed(self, buffer: str, tec_increment: int) -> None:
-        self.ecan.transmission_failed(buffer, tec_increment=tec_increment)
+        self.controller.transmission_failed(buffer, tec_increment=tec_increment)
 
     def receive(self, frame: CanFrame) -> str:
-        rec = self.ecan.rec
-        reception = self.ecan.frame_received(frame)
-        if reception.filter is not None or self.ecan.rec != rec:    # a rejected frame changes nothing else
-            self.mcu.changed()
-        return str(reception)
+        return str(self.controller.frame_received(frame))
 
     def receive_error(self, rec_increment: int) -> None:
-        self.ecan.receive_error(rec_increment=rec_increment)
-        self.mcu.changed()
+        self.controller.receive_error(rec_increment=rec_increment)
 
     def activity(self) -> None:
-        if self.ecan.bus_activity():
-            self.mcu.changed()
-
-    def notify(self) -> None:
-        self.mcu.changed()
+        self.controller.bus_activity()
 
 
 class Outside(Protocol):
@@ -176,7 +166,6 @@ class _LinkPort(_Port):
     def failed(self, buffer: str, tec_increment: int) -> None: ...
     def receive_error(self, rec_increment: int) -> None: ...
     def activity(self) -> None: ...
-    def notify(self) -> None: ...
 
     def succeeded(self, buffer: str) -> None:
         self.queue.popleft()
@@ -195,7 +184,7 @@ def oscillator_tolerance(timing: BitTiming) -> Fraction:
 
 
 class Bus:
-    """The wire and its protocol engine: every attached node's ECAN is driven from here.
+    """The wire and its protocol engine: every attached node's controller is driven from here.
 
     `trace` (and `loopback_trace`) keep the last `trace_window` events in memory (every one if None), with counts over
     the whole run; a log listening to `trace.listeners` keeps every event."""
@@ -211,7 +200,7 @@ class Bus:
         # takes effect at the next SOF at the earliest: no other node can see it before busy_until.
         sim.quiet_until = lambda: self.busy_until
         self.ports: list[_Port] = []
-        self._by_ecan: dict[int, _BoardPort] = {}
+        self._by_controller: dict[int, _NodePort] = {}
         self.trace = Trace(trace_window)
         self.loopback_trace = Trace(trace_window)        # frames a node in Loopback mode sent itself
         self.busy_until = 0          # end of the intermission after the last frame or error frame
@@ -219,22 +208,23 @@ class Bus:
         self._idle_timer: Timer | None = None
 
     # ------------------------------------------------------------------ nodes
-    def attach(self, mcu: PIC18F8680) -> PIC18F8680:
-        port = _BoardPort(mcu)
+    def attach(self, node: AnyNode) -> AnyNode:
+        """Put a node on the bus: the wire drives its controller, which tells the wire what it wants."""
+        port = _NodePort(node)
         self.ports.append(port)
-        self._by_ecan[id(mcu.ecan)] = port
-        mcu.ecan.listener = self
-        return mcu
+        self._by_controller[id(port.controller)] = port
+        port.controller.wire = self
+        return node
 
-    def node(self, name: str) -> PIC18F8680:
+    def node(self, name: str) -> Node:
         for port in self.ports:
-            if port.name == name and isinstance(port, _BoardPort):
-                return port.mcu
+            if port.name == name and isinstance(port, _NodePort):
+                return port.node
         raise KeyError(f"no node named {name!r} on this bus")
 
-    def boards(self) -> list[PIC18F8680]:
-        """The simulated boards on this bus, in the order they were attached."""
-        return [port.mcu for port in self.ports if isinstance(port, _BoardPort)]
+    def boards(self) -> list[Node]:
+        """The simulated nodes on this bus, in the order they were attached."""
+        return [port.node for port in self.ports if isinstance(port, _NodePort)]
 
     def attach_outside(self, outside: Outside) -> _LinkPort:
         """Join the rest of a real bus (see `appsim.bus.link`): it ACKs every frame and sends its own.
@@ -249,26 +239,26 @@ class Bus:
         port.queue.append(frame)
         self._schedule_arbitration(max(self.sim.time(), self.busy_until))
 
-    def _rate_ok(self, port: _BoardPort) -> bool:
+    def _rate_ok(self, port: _NodePort) -> bool:
         try:
-            timing = port.ecan.bit_timing()
+            timing = port.controller.bit_timing()
         except BitTimingError:
             return False
         if timing.problems():
             return False
-        error = abs(timing.bit_rate(port.mcu.fosc) - self.bit_rate) / self.bit_rate
+        error = abs(timing.bit_rate(port.controller.fosc) - self.bit_rate) / self.bit_rate
         return error <= oscillator_tolerance(timing)
 
-    def _node_bit_ps(self, port: _BoardPort) -> int:
-        return port.ecan.bit_timing().bit_time_ps(port.mcu.fosc)
+    def _node_bit_ps(self, port: _NodePort) -> int:
+        return port.controller.bit_timing().bit_time_ps(port.controller.fosc)
 
-    # ------------------------------------------------------------------ what the ECAN asks for
-    def mode_requested(self, ecan: ECAN) -> None:
+    # ------------------------------------------------------------------ what a controller asks for
+    def mode_requested(self, controller: Controller) -> None:
         """OPMODE follows REQOP after 11 consecutive recessive bits. A module that has been on the bus
         counts the recessive bits that end every frame (ACK delimiter, EOF, intermission) or error frame
         (delimiter, intermission): it switches when the bus goes idle. One coming from Configuration or
         Disable mode starts counting at the request, at its own bit time."""
-        port = self._by_ecan[id(ecan)]
+        port = self._by_controller[id(controller)]
         if port.mode_timer is not None:
             return
         now = self.sim.time()
@@ -278,44 +268,42 @@ class Bus:
             when = max(now, self.busy_until)
         port.mode_timer = self.sim.call_at(when, lambda: self._change_mode(port))
 
-    def _change_mode(self, port: _BoardPort) -> None:
+    def _change_mode(self, port: _NodePort) -> None:
         """OPMODE follows REQOP once the bus is idle (a frame in progress is finished first)."""
         port.mode_timer = None
         if self.busy_until > self.sim.now:
             port.mode_timer = self.sim.call_at(self.busy_until, lambda: self._change_mode(port))
             return
-        port.ecan.enter_requested_mode()
-        if port.ecan.opmode in (Mode.NORMAL, Mode.LISTEN_ONLY):
+        port.controller.enter_requested_mode()
+        if port.mode in (Mode.NORMAL, Mode.LISTEN_ONLY):
             port.rate_ok = self._rate_ok(port)
-        port.mcu.changed()
-        self.transmit_requested(port.ecan)
+        self.transmit_requested(port.controller)
 
-    def transmit_requested(self, ecan: ECAN) -> None:
-        port = self._by_ecan[id(ecan)]
-        if ecan.opmode == Mode.LOOPBACK:
+    def transmit_requested(self, controller: Controller) -> None:
+        port = self._by_controller[id(controller)]
+        if port.mode == Mode.LOOPBACK:
             self._loopback(port)
-        elif ecan.opmode == Mode.NORMAL:
+        elif port.mode == Mode.NORMAL:
             self._schedule_arbitration(max(self.sim.time(), self.busy_until, port.suspend_until))
 
     # ------------------------------------------------------------------ loopback: off the bus
-    def _loopback(self, port: _BoardPort) -> None:
+    def _loopback(self, port: _NodePort) -> None:
         """TX buffer -> MAB -> filters -> RX buffer, at the node's own bit rate, never on the bus."""
-        ecan = port.ecan
-        buffer = ecan.next_transmission()
+        controller = port.controller
+        buffer = controller.next_transmission()
         start = self.sim.time()
-        if buffer is None or ecan.on_wire is not None or port.loop_busy_until > start:
+        if buffer is None or controller.on_wire is not None or port.loop_busy_until > start:
             return
-        frame = ecan.frame_in(buffer)
-        ecan.transmission_started(buffer)
+        frame = controller.frame_in(buffer)
+        controller.transmission_started(buffer)
         end = start + frame_bits(frame) * self._node_bit_ps(port)
         port.loop_busy_until = end + INTERMISSION_BITS * self._node_bit_ps(port)
 
         def done() -> None:
-            ecan.transmission_succeeded(buffer)       # the ACK comes from the module itself
-            reception = ecan.frame_received(frame)
+            controller.transmission_succeeded(buffer)       # the ACK comes from the module itself
+            reception = controller.frame_received(frame)
             self.loopback_trace.append(BusEvent(start, end, port.name, frame, (port.name,), "",
                                                 ((port.name, str(reception)),)))
-            port.mcu.changed()
             self.sim.call_at(port.loop_busy_until, lambda: self._loopback(port))
 
         self.sim.call_at(end, done)
@@ -479,7 +467,6 @@ class Bus:
         """An error-passive transmitter waits 8 more bits (suspend transmission) before its next SOF."""
         if port.error_passive:
             port.suspend_until = self.busy_until + SUSPEND_TRANSMISSION_BITS * self.bit_ps
-        port.notify()
 
     # ------------------------------------------------------------------ idle bus, bus-off recovery
     def _bus_idle(self) -> None:
@@ -514,11 +501,11 @@ class Bus:
             self._idle_timer.cancel()
             self._idle_timer = None
 
-    def _recover(self, port: _BoardPort, sequences: int) -> None:
-        port.ecan.bus_off_recovery(sequences)
-        if not port.ecan.bus_off:
-            port.mcu.changed()
-            self.transmit_requested(port.ecan)
+    def _recover(self, port: _Port, sequences: int) -> None:
+        if isinstance(port, _NodePort):
+            port.controller.bus_off_recovery(sequences)
+            if not port.bus_off:
+                self.transmit_requested(port.controller)
 
     # ------------------------------------------------------------------ reading the trace
     def frames(self) -> list[BusEvent]:

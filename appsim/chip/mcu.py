@@ -54,7 +54,7 @@ class PIC18F8680(SFRNames):
         self.fosc = fosc
         self.tcy_ps = 4 * PS_PER_SECOND // fosc
         self.access_ps = SFR_ACCESS_CYCLES * self.tcy_ps
-        self.ecan = ECAN()
+        self.ecan = ECAN(name, fosc, changed=self.changed)
         self.sfr_addresses: dict[str, int] = {}
         self._devices: dict[int, Peripheral] = {}
         self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
@@ -70,8 +70,12 @@ class PIC18F8680(SFRNames):
         self.time_varying: set[int] = set()
         self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
         self.process: Process | None = None
-        self.on_changed: list[Callable[[], None]] = []
         self.glcd: GLCDPort | None = None                   # the board's display, if it has one
+
+    @property
+    def controller(self) -> ECAN:
+        """Its CAN controller, as the wire sees it (`appsim.bus.controller.Controller`)."""
+        return self.ecan
 
     def map(self, device: Peripheral, registers: Iterable[tuple[str, int]]) -> None:
         """Put a peripheral's registers (name, address) on the SFR bus."""
@@ -157,8 +161,6 @@ class PIC18F8680(SFRNames):
         process = self.process
         if process is not None and process.parked and self._loop_would_see_a_change():
             process.wake()
-        for callback in self.on_changed:
-            callback()
 
     def _loop_would_see_a_change(self) -> bool:
         parked_on = self._parked_on

@@ -1,13 +1,13 @@
 """The ECAN module of a PIC18F8680 in legacy Mode 0: a register file and what the silicon does on each event.
 
-Firmware reads and writes registers; the bus calls the event methods (transmitted, lost, error, received).
+Firmware reads and writes registers; the wire calls the event methods (`appsim.bus.controller.Controller`).
 """
 from __future__ import annotations
 
-import enum
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
 
+from appsim.bus.controller import Mode, Wire
 from appsim.can.bittiming import BitTiming
 from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import Filter, buffer_hit, raw29, unpack_id
@@ -15,30 +15,9 @@ from appsim.can.frame import CanFrame
 from appsim.errors import UnsupportedMode
 
 
-class Mode(enum.IntEnum):
-    """OPMODE<2:0> / REQOP<2:0> (CANSTAT<7:5>, CANCON<7:5>)."""
-
-    NORMAL = 0b000
-    DISABLE = 0b001
-    LOOPBACK = 0b010
-    LISTEN_ONLY = 0b011
-    CONFIGURATION = 0b100
-
-    @classmethod
-    def from_reqop(cls, reqop: int) -> "Mode":
-        """REQOP = 1xx requests Configuration; 101, 110 and 111 read back as OPMODE 100."""
-        return _MODE_OF_REQOP[reqop]
-
-
+# The mode each REQOP<2:0> requests: 1xx requests Configuration (101, 110 and 111 read back as OPMODE 100).
 # Looked up rather than built: CANCON is written at every CANCON.WIN change, and enum construction is slow.
 _MODE_OF_REQOP = tuple(Mode.CONFIGURATION if reqop & 0b100 else Mode(reqop) for reqop in range(8))
-
-
-class Listener(Protocol):
-    """What the controller tells the protocol engine (the bus) it attaches to."""
-
-    def mode_requested(self, ecan: "ECAN") -> None: ...
-    def transmit_requested(self, ecan: "ECAN") -> None: ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,13 +72,17 @@ _SIDE_EFFECTS = frozenset(R.BY_NAME[n].address for n in ("CANCON", "TXB0CON", "T
 class ECAN:
     """One ECAN module. Registers are the truth; everything else is derived from them or is counters.
 
-    `mode_change_aborts_tx`: the workshop says "when CANSetOperationMode() runs, a pending message
-    is aborted!!" while the AN738 header says it has no side effects; the kit follows the workshop
-    by default.
+    `changed` is called whenever an event of the bus changes what the firmware can read (the MCU wakes a waiting
+    firmware). `mode_change_aborts_tx`: the workshop says "when CANSetOperationMode() runs, a pending message
+    is aborted!!" while the AN738 header says it has no side effects; the kit follows the workshop by default.
     """
 
-    def __init__(self, listener: Listener | None = None, *, mode_change_aborts_tx: bool = True):
-        self.listener = listener
+    def __init__(self, name: str = "ECAN", fosc: int = 40_000_000, *, changed: Callable[[], None] = lambda: None,
+                 mode_change_aborts_tx: bool = True):
+        self.name = name
+        self.fosc = fosc
+        self.wire: Wire | None = None
+        self.changed = changed
         self.mode_change_aborts_tx = mode_change_aborts_tx
         self.ignored_writes: list[tuple[str, int]] = []
         self.reset()
@@ -122,7 +105,7 @@ class ECAN:
     @property
     def requested_mode(self) -> Mode:
         """The mode asked for in CANCON.REQOP (OPMODE follows once the bus allows)."""
-        return Mode.from_reqop(self._sfr[0x6F] >> 5)
+        return _MODE_OF_REQOP[self._sfr[0x6F] >> 5]
 
     @property
     def bus_off(self) -> bool:
@@ -211,15 +194,15 @@ class ECAN:
                     if self.get(buffer + "CON") & R.TXREQ:
                         self._request_abort(buffer)
                 self._clearbits("CANCON", R.ABAT)     # ABAT clears itself once acted upon
-            if Mode.from_reqop(new >> 5) != self.opmode and self.listener:
-                self.listener.mode_requested(self)
+            if _MODE_OF_REQOP[new >> 5] != self.opmode and self.wire:
+                self.wire.mode_requested(self)
         elif name in ("TXB0CON", "TXB1CON", "TXB2CON"):
             buffer = name[:4]
             if new & R.TXREQ and not old & R.TXREQ:
                 self._set(name, new & ~(R.TXABT | R.TXLARB | R.TXERR))
                 self._abort_requested.discard(buffer)
-                if self.listener:
-                    self.listener.transmit_requested(self)
+                if self.wire:
+                    self.wire.transmit_requested(self)
             elif old & R.TXREQ and not new & R.TXREQ:
                 self._setbits(name, R.TXREQ)          # the hardware, not software, ends a request
                 self._request_abort(buffer)
@@ -269,8 +252,11 @@ class ECAN:
     def enter_requested_mode(self) -> None:
         """OPMODE takes the REQOP value (the bus calls this once it has seen the bus idle)."""
         mode = self.requested_mode
-        if mode == self.opmode:
-            return
+        if mode != self.opmode:
+            self._enter(mode)
+        self.changed()
+
+    def _enter(self, mode: Mode) -> None:
         if self.mode_change_aborts_tx or mode == Mode.CONFIGURATION:
             for buffer in R.TX_BUFFERS:
                 if self.get(buffer + "CON") & R.TXREQ and buffer != self.on_wire:
@@ -320,12 +306,14 @@ class ECAN:
         self._clearbits(buffer + "CON", R.TXREQ)
         self._setbits("PIR3", R.TXBIF[buffer])
         self._set_counters(max(self.tec - 1, 0), self.rec)
+        self.changed()
 
     def arbitration_lost(self, buffer: str) -> None:
         """TXLARB sets (no interrupt) and the frame waits for the next bus idle, unless aborted."""
         self.on_wire = None
         self._setbits(buffer + "CON", R.TXLARB)
         self._finish_abort(buffer)
+        self.changed()
 
     def transmission_failed(self, buffer: str, *, tec_increment: int = 8) -> None:
         """A bit, form, stuff or ACK error while sending: TXERR and IRXIF set, TEC += 8, retry later.
@@ -338,6 +326,7 @@ class ECAN:
         self._setbits("PIR3", R.IRXIF)
         self._set_counters(self.tec + tec_increment, self.rec)
         self._finish_abort(buffer)
+        self.changed()
 
     def _finish_abort(self, buffer: str) -> None:
         if buffer in self._abort_requested:
@@ -353,6 +342,7 @@ class ECAN:
         if self._recovery_sequences >= 128:
             self._recovery_sequences = 0
             self._set_counters(0, 0)
+            self.changed()
 
     # ----------------------------------------------------------------- receive (bus side)
     def _acceptance_config(self) -> dict[str, tuple[tuple[Filter, ...], int]]:
@@ -373,8 +363,15 @@ class ECAN:
 
     def frame_received(self, frame: CanFrame) -> Reception:
         """A valid frame has reached the MAB: filter it and route it to RXB0, RXB1 or overflow."""
-        if self.rec:
-            self._set_counters(self.tec, self.rec - 1 if self.rec <= 127 else 127)
+        rec = self.rec
+        if rec:
+            self._set_counters(self.tec, rec - 1 if rec <= 127 else 127)
+        reception = self._accept(frame)
+        if reception.filter is not None or self.rec != rec:     # a rejected frame changes nothing else
+            self.changed()
+        return reception
+
+    def _accept(self, frame: CanFrame) -> Reception:
         config = self._acceptance_config()
         sfr = self._sfr
         filters, mask = config["RXB0"]
@@ -423,14 +420,14 @@ class ECAN:
         self._setbits("PIR3", R.RXBIF[buffer])
         return Reception(buffer, filter_number)
 
-    def bus_activity(self) -> bool:
+    def bus_activity(self) -> None:
         """A SOF on the bus: in Disable mode it sets WAKIF (when WAKIE is set, as DS39500 says)."""
         if self.opmode == Mode.DISABLE and self._sfr[0xA3] & R.WAKIF:
             self._setbits("PIR3", R.WAKIF)
-            return True
-        return False
+            self.changed()
 
     def receive_error(self, *, rec_increment: int = 1) -> None:
         """A receiver detected a CRC, stuff or form error: IRXIF sets, REC += 1 (or 8)."""
         self._setbits("PIR3", R.IRXIF)
         self._set_counters(self.tec, self.rec + rec_increment)
+        self.changed()

@@ -15,7 +15,7 @@ from typing import Protocol
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus, BusEvent
 from appsim.can.frame import STANDARD_ID_MAX, CanFrame
-from appsim.chip.ecan.controller import Mode
+from appsim.bus.controller import Mode
 from appsim.chip.mcu import PIC18F8680
 from appsim.errors import AppsimError, FirmwareError
 from appsim.firmware.loader import load_firmware
