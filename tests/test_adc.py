@@ -5,7 +5,7 @@ from collections.abc import Callable
 
 import pytest
 
-from appsim.chip.adc import ADC, attach_adc
+from appsim.chip.adc import ADC
 from appsim.firmware.adc import (
     ADC_1ANA,
     ADC_16ANA,
@@ -47,7 +47,7 @@ OPEN_CH0 = (ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_1ANA,
 def make_board(potentiometer: int = 0) -> tuple[Simulator, PIC18F8680, ADC]:
     sim = Simulator()
     mcu = PIC18F8680(sim, "station0")
-    adc = attach_adc(mcu)
+    adc = mcu.adc
     adc.potentiometer = potentiometer
     return sim, mcu, adc
 
@@ -79,12 +79,6 @@ def test_reset_values_and_unimplemented_bits() -> None:
         mcu.write_name(name, 0xFF)
     mcu.write_name("ADCON0", 0xFD)          # everything but GO/DONE
     assert registers(mcu) == {"ADRESH": 0xFF, "ADRESL": 0xFF, "ADCON0": 0x3D, "ADCON1": 0x3F, "ADCON2": 0xBF}
-
-
-def test_attach_twice_is_refused() -> None:
-    _, mcu, _ = make_board()
-    with pytest.raises(ValueError, match="already has its A/D"):
-        attach_adc(mcu)
 
 
 def test_register_level_conversion_takes_11_tad() -> None:

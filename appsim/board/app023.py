@@ -1,6 +1,6 @@
-"""The APP023 training board: a PIC18F8680 at 40 MHz with its ECAN on a CAN bus and the A/D on a potentiometer.
+"""The APP023 training board: glue around a PIC18F8680 at 40 MHz on a CAN bus, with its off-chip parts.
 
-The board's other parts (Timer1, GLCD, USART to the USB-CDC monitor) plug into the same SFR bus.
+The potentiometer on AN0, the GLCD, DSW2 (routing the EUSART's pins, read on RJ0/RJ1) and the two serial ends.
 """
 from __future__ import annotations
 
@@ -9,16 +9,18 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
-from appsim.chip.adc import ADC, attach_adc
-from appsim.bus.wire import Bus
-from appsim.board.dsw2 import attach_dsw2
+from appsim.board.dsw2 import CON9, DSW2, USB
 from appsim.board.glcd import GLCD, attach_glcd
-from appsim.chip.interrupts import PeripheralInterrupts, attach_interrupts
-from appsim.firmware.loader import load_firmware
+from appsim.bus.wire import Bus
+from appsim.chip.adc import ADC
+from appsim.chip.ecan.controller import ECAN
+from appsim.chip.interrupts import PeripheralInterrupts
 from appsim.chip.mcu import PIC18F8680
+from appsim.chip.ports import PortJ
+from appsim.chip.timer1 import Timer1
+from appsim.chip.usart import USART, SerialEnd
+from appsim.firmware.loader import load_firmware
 from appsim.sim import Process
-from appsim.chip.timer1 import Timer1, attach_timer1
-from appsim.chip.usart import USART, SerialEnd, attach_usart
 
 
 class APP023:
@@ -27,15 +29,18 @@ class APP023:
     def __init__(self, bus: Bus, name: str = "station0", *, potentiometer: int = 512):
         self.bus = bus
         self.mcu: PIC18F8680 = bus.attach(PIC18F8680(bus.sim, name))
-        self.adc: ADC = attach_adc(self.mcu)
+        self.adc: ADC = self.mcu.adc
         self.adc.potentiometer = potentiometer
-        self.interrupts: PeripheralInterrupts = attach_interrupts(self.mcu)
-        self.timer1: Timer1 = attach_timer1(self.mcu, self.interrupts)
+        self.interrupts: PeripheralInterrupts = self.mcu.interrupts
+        self.timer1: Timer1 = self.mcu.timer1
+        self.usart: USART = self.mcu.usart
+        self.portj: PortJ = self.mcu.portj
         self.glcd: GLCD = attach_glcd(self.mcu)
-        self.dsw2, self.portj = attach_dsw2(self.mcu)      # DSW2 5 6 ON; positions 1 2 on RJ0 RJ1
-        self.usart: USART = attach_usart(self.mcu, self.interrupts, self.dsw2)
-        self.usb: SerialEnd = self.usart.usb         # the PIC18F2550 USB-CDC monitor's end (DSW2 5 6 ON)
-        self.con9: SerialEnd = self.usart.con9       # the RS-232 connector's end (DSW2 3 4 ON)
+        self.dsw2 = DSW2(self.mcu)                   # 5 6 ON; positions 1 2 drive RJ0 RJ1
+        self.portj.levels = self.dsw2.levels
+        self.usart.wired_to = lambda: self.dsw2.route
+        self.usb = SerialEnd(self.usart, USB, "PIC18F2550 USB-CDC")    # the USB-CDC monitor's end (DSW2 5 6 ON)
+        self.con9 = SerialEnd(self.usart, CON9, "CON9 RS-232")         # the RS-232 connector's end (DSW2 3 4 ON)
         self.firmware: ModuleType | None = None
 
     @property
@@ -43,7 +48,7 @@ class APP023:
         return self.mcu.name
 
     @property
-    def ecan(self):
+    def ecan(self) -> ECAN:
         return self.mcu.ecan
 
     def run(self, firmware: str | Path | ModuleType | Callable[[], Any]) -> Process:

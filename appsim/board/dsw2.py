@@ -1,13 +1,12 @@
 """DSW2, the APP023's 8-position DIP switch: where the USART goes (5 6 -> PIC18F2550 USB, 3 4 -> CON9 RS-232), and PORTJ.
 
-Positions 1 and 2 are read by firmware on RJ0/RJ1 (ON reads 0, pulled up); PORTJ, LATJ and TRISJ are modelled for that.
+Positions 1 and 2 are read by firmware on RJ0/RJ1 (ON reads 0, pulled up): the switch drives those PORTJ pins.
 """
 from __future__ import annotations
 
 from collections.abc import Iterable
 
 from appsim.chip.mcu import PIC18F8680
-from appsim.chip.sfr import PORTJ_REGISTERS
 
 POSITIONS = range(1, 9)
 USB, CON9 = "usb", "con9"
@@ -47,6 +46,10 @@ class DSW2:
     def is_on(self, position: int) -> bool:
         return _checked((position,))[0] in self._on
 
+    def levels(self) -> int:
+        """What positions 1 and 2 put on RJ0 and RJ1 (pulled up: OFF reads 1), the other PORTJ pins 0."""
+        return sum((not self.is_on(position)) << (position - 1) for position in (1, 2))
+
     @property
     def route(self) -> str | None:
         """Where the USART goes: "usb", "con9", or None (nowhere)."""
@@ -83,46 +86,3 @@ def _checked(positions: tuple[int, ...]) -> tuple[int, ...]:
         if not isinstance(position, int) or isinstance(position, bool) or position not in POSITIONS:
             raise ValueError(f"DSW2 has positions 1..8; got {position!r}")
     return positions
-
-
-# ------------------------------------------------------------------ PORTJ: DSW2 1 and 2 on RJ0 and RJ1
-_PORTJ, _LATJ, _TRISJ = (PORTJ_REGISTERS[name] for name in ("PORTJ", "LATJ", "TRISJ"))
-
-
-class PortJ:
-    """PORTJ, LATJ and TRISJ, only as far as DSW2 needs: a Peripheral on the SFR bus.
-
-    TRISJ resets to 0xFF (all inputs). An input pin reads its level: RJ0 and RJ1 are DSW2 positions 1
-    and 2, pulled up, so ON reads 0 and OFF reads 1; RJ2..RJ7 are not modelled and read 0 as inputs.
-    An output pin reads back its LATJ bit; writing PORTJ writes LATJ, as on the chip.
-    """
-
-    def __init__(self, dsw2: DSW2):
-        self.dsw2 = dsw2
-        self._latch = 0
-        self._tris = 0xFF
-
-    def pins(self) -> int:
-        """The levels DSW2 puts on RJ0 and RJ1 (pulled up: OFF = 1)."""
-        return sum((not self.dsw2.is_on(position)) << (position - 1) for position in (1, 2))
-
-    def read(self, address: int) -> int:
-        if address == _PORTJ:
-            return (self.pins() & self._tris) | (self._latch & ~self._tris & 0xFF)
-        return self._latch if address == _LATJ else self._tris
-
-    def write(self, address: int, value: int) -> None:
-        if address == _TRISJ:
-            self._tris = value
-        else:
-            self._latch = value
-
-
-def attach_dsw2(mcu: PIC18F8680) -> tuple[DSW2, PortJ]:
-    """Give `mcu` the board's DSW2 (default 5 6 ON) and the PORTJ it is read through."""
-    if "PORTJ" in mcu.sfr_addresses:
-        raise ValueError(f"{mcu.name} already has its PORTJ")
-    dsw2 = DSW2(mcu)
-    port = PortJ(dsw2)
-    mcu.map(port, PORTJ_REGISTERS.items())
-    return dsw2, port

@@ -5,14 +5,16 @@ Conversions take 11 TAD on the simulated clock; appsim.firmware.adc (C18's adc.h
 from __future__ import annotations
 
 import numbers
-from typing import TypeGuard
+from typing import TYPE_CHECKING, TypeGuard
 
-from appsim.chip.mcu import PIC18F8680
 from appsim.chip.sfr import ADC_CHANNELS, ADC_REGISTERS
 from appsim.chip.sfr import ADFM as _ADFM
 from appsim.chip.sfr import ADON as _ADON
 from appsim.chip.sfr import GO_DONE as _GO_DONE
 from appsim.sim import PS_PER_SECOND, Timer
+
+if TYPE_CHECKING:
+    from appsim.chip.mcu import PIC18F8680
 
 _ADRESH, _ADRESL, _ADCON0, _ADCON1, _ADCON2 = (ADC_REGISTERS[name]
                                                for name in ("ADRESH", "ADRESL", "ADCON0", "ADCON1", "ADCON2"))
@@ -139,11 +141,3 @@ class ADC:
         self._registers[_ADCON0] &= ~_GO_DONE
         self.mcu.changed()
 
-
-def attach_adc(mcu: PIC18F8680) -> ADC:
-    """Give `mcu` its A/D module: ADRESH, ADRESL, ADCON0..2 on its SFR bus."""
-    if "ADCON0" in mcu.sfr_addresses:
-        raise ValueError(f"{mcu.name} already has its A/D module")
-    adc = ADC(mcu)
-    mcu.map(adc, ADC_REGISTERS.items())
-    return adc

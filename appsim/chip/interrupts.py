@@ -4,10 +4,14 @@ Peripherals set latched flags (TMR1IF) or provide read-only status flags (TXIF, 
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from collections.abc import Callable
 
-from appsim.chip.mcu import PIC18F8680
 from appsim.chip.sfr import INTERRUPT_REGISTERS, INTERRUPT_SOURCES
+
+if TYPE_CHECKING:
+    from appsim.chip.mcu import PIC18F8680
 
 _PIE1, _PIR1, _IPR1 = (INTERRUPT_REGISTERS[name] for name in ("PIE1", "PIR1", "IPR1"))
 FLAG_NAMES: dict[int, str] = {bit: f"{source}IF" for bit, source in enumerate(INTERRUPT_SOURCES)}
@@ -71,11 +75,3 @@ class PeripheralInterrupts:
         else:
             self._priority = value
 
-
-def attach_interrupts(mcu: PIC18F8680) -> PeripheralInterrupts:
-    """Give `mcu` its PIR1, PIE1 and IPR1."""
-    if "PIR1" in mcu.sfr_addresses:
-        raise ValueError(f"{mcu.name} already has PIR1/PIE1/IPR1")
-    interrupts = PeripheralInterrupts(mcu)
-    mcu.map(interrupts, INTERRUPT_REGISTERS.items())
-    return interrupts

@@ -1,4 +1,4 @@
-"""The PIC18F8680 as firmware sees it: special function registers by address and name, time in cycles.
+"""The PIC18F8680 as firmware sees it: its peripherals on one SFR bus (by address and name), time in cycles.
 
 Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
 from the same place in the firmware, with nothing changed since) parks the firmware until a
@@ -13,9 +13,17 @@ from typing import Any, Protocol
 
 import greenlet
 
+from appsim.chip.adc import ADC
 from appsim.chip.ecan import registers as ecan_registers
 from appsim.chip.ecan.controller import ECAN
-from appsim.chip.sfr import RUNNING_MCU, GLCDPort, SFRNames, firmware_entry, firmware_location, forget_firmware_code
+from appsim.chip.interrupts import PeripheralInterrupts
+from appsim.chip.ports import PortJ
+from appsim.chip.sfr import (
+    ADC_REGISTERS, INTERRUPT_REGISTERS, PORTJ_REGISTERS, RUNNING_MCU, TIMER1_REGISTERS, USART_REGISTERS, GLCDPort,
+    SFRNames, firmware_entry, firmware_location, forget_firmware_code,
+)
+from appsim.chip.timer1 import Timer1
+from appsim.chip.usart import USART
 from appsim.sim import PS_PER_SECOND, Process, Simulator
 
 FOSC_HZ = 40_000_000            # APP023: 10 MHz crystal with the 4x PLL
@@ -46,7 +54,9 @@ class ReadAhead:
 
 
 class PIC18F8680(SFRNames):
-    """One microcontroller on the simulated clock, with its ECAN module mapped at F00h..F77h, FA3h..FA5h."""
+    """One microcontroller on the simulated clock, built whole: the ECAN module (F00h..F77h, FA3h..FA5h), the A/D,
+    Timer1, the EUSART, PIR1/PIE1/IPR1 and PORTJ on its SFR bus. A board wires its pins (`usart.wired_to`,
+    `portj.levels`) and may give it a display (`glcd`)."""
 
     def __init__(self, sim: Simulator, name: str = "node", *, fosc: int = FOSC_HZ):
         self.sim = sim
@@ -71,6 +81,16 @@ class PIC18F8680(SFRNames):
         self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
         self.process: Process | None = None
         self.glcd: GLCDPort | None = None                   # the board's display, if it has one
+        self.interrupts = PeripheralInterrupts(self)
+        self.map(self.interrupts, INTERRUPT_REGISTERS.items())
+        self.adc = ADC(self)
+        self.map(self.adc, ADC_REGISTERS.items())
+        self.timer1 = Timer1(self, self.interrupts)
+        self.map(self.timer1, TIMER1_REGISTERS.items())
+        self.usart = USART(self, self.interrupts)
+        self.map(self.usart, USART_REGISTERS.items())
+        self.portj = PortJ()
+        self.map(self.portj, PORTJ_REGISTERS.items())
 
     @property
     def controller(self) -> ECAN:

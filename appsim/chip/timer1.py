@@ -4,14 +4,18 @@ The count is computed from simulated time; one event per overflow sets PIR1.TMR1
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from appsim.chip.interrupts import PeripheralInterrupts
-from appsim.chip.mcu import PIC18F8680
 from appsim.chip.sfr import RD16 as _RD16
 from appsim.chip.sfr import T1CKPS as _T1CKPS
 from appsim.chip.sfr import TIMER1_REGISTERS, TMR1IF
 from appsim.chip.sfr import TMR1CS as _TMR1CS
 from appsim.chip.sfr import TMR1ON as _TMR1ON
 from appsim.sim import Timer
+
+if TYPE_CHECKING:
+    from appsim.chip.mcu import PIC18F8680
 
 _TMR1H, _TMR1L, _T1CON = (TIMER1_REGISTERS[name] for name in ("TMR1H", "TMR1L", "T1CON"))
 _T1CON_WRITABLE = 0xBF          # bit 6 is unimplemented on the PIC18F8680 and reads 0
@@ -120,11 +124,3 @@ class Timer1:
         self._restart(0, self.mcu.sim.now)
         self.interrupts.set_flag(TMR1IF)
 
-
-def attach_timer1(mcu: PIC18F8680, interrupts: PeripheralInterrupts) -> Timer1:
-    """Give `mcu` its Timer1: T1CON, TMR1H, TMR1L on its SFR bus, overflowing into `interrupts` (PIR1)."""
-    if "T1CON" in mcu.sfr_addresses:
-        raise ValueError(f"{mcu.name} already has its Timer1")
-    timer1 = Timer1(mcu, interrupts)
-    mcu.map(timer1, TIMER1_REGISTERS.items())
-    return timer1

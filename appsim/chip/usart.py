@@ -1,21 +1,22 @@
 """The PIC18F8680's USART in asynchronous mode at register level (TXSTA, RCSTA, SPBRG, TXREG, RCREG, BAUDCON, SPBRGH).
 
-Bytes leave through DSW2 to the PIC18F2550 (USB-CDC) or CON9 (RS-232) ends, and arrive from them; appsim.firmware.usart (C18's usart.h) drives it.
+Bytes leave by the TX pin to the serial end the board wires it to, and arrive from it; appsim.firmware.usart (C18's usart.h) drives it.
 """
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import NamedTuple, TYPE_CHECKING
 
-from appsim.board.dsw2 import CON9, DSW2, USB
 from appsim.chip.interrupts import PeripheralInterrupts
-from appsim.chip.mcu import PIC18F8680
 from appsim.chip.sfr import (
     ABDEN, ADDEN, BRG16, BRGH, CREN, CSRC, FERR, OERR, RCIDL, RCIF, RX9, RX9D, SCKP, SENDB, SPEN, SREN, SYNC,
     TRMT, TX9, TX9D, TXEN, TXIF, USART_REGISTERS, WUE,
 )
 from appsim.sim import PS_PER_SECOND, Timer
+
+if TYPE_CHECKING:
+    from appsim.chip.mcu import PIC18F8680
 
 _TXSTA, _RCSTA, _TXREG, _RCREG, _SPBRG, _BAUDCON, _SPBRGH = (
     USART_REGISTERS[name] for name in ("TXSTA", "RCSTA", "TXREG", "RCREG", "SPBRG", "BAUDCON", "SPBRGH"))
@@ -37,16 +38,19 @@ class Received(NamedTuple):
 
 
 class SerialEnd:
-    """One place DSW2 can connect the USART to: the PIC18F2550 (USB-CDC) or CON9 (RS-232), seen from the PC.
+    """A device the board can wire the USART's TX and RX pins to (on the APP023: the PIC18F2550's USB-CDC, or
+    CON9's RS-232), seen from the PC; `route` names it among the USART's ends.
 
-    `listeners` are called with (byte, time_ps) when a byte's stop bit leaves the USART, if DSW2 routes
-    the USART here. `write` sends bytes to the board at `baud` (8N1, back to back), starting at the
+    `listeners` are called with (byte, time_ps) when a byte's stop bit leaves the USART, if the pins are
+    wired here. `write` sends bytes to the board at `baud` (8N1, back to back), starting at the
     caller's present simulated time; the USART samples each frame at its own baud rate, so a firmware
     with the wrong SPBRG receives garbage and framing errors, as with a real cable. Bytes that find
-    DSW2 routed elsewhere, SPEN or CREN off, or the receiver blocked by an overrun are counted in `lost`.
+    the pins wired elsewhere, SPEN or CREN off, or the receiver blocked by an overrun are counted in `lost`.
     """
 
     def __init__(self, usart: USART, route: str, place: str, *, baud: int = PC_BAUD):
+        if route in usart.ends:
+            raise ValueError(f"the USART of {usart.mcu.name} already has an end named {route!r}")
         self.usart = usart
         self.route = route
         self.place = place
@@ -54,11 +58,12 @@ class SerialEnd:
         self.listeners: list[Callable[[int, int], None]] = []
         self.lost = 0
         self._line_free_ps = 0
+        usart.ends[route] = self
 
     @property
     def connected(self) -> bool:
-        """Whether DSW2 connects the USART to this end."""
-        return self.usart.dsw2.route == self.route
+        """Whether the board wires the USART's pins to this end now."""
+        return self.usart.wired_to() == self.route
 
     def bit_ps(self) -> int:
         return round(PS_PER_SECOND / self.baud)
@@ -105,9 +110,11 @@ class USART:
     interrupts are taken (PIE1.TXIE/RCIE are stored only): firmware polls, as C18's functions do.
     """
 
-    def __init__(self, mcu: PIC18F8680, interrupts: PeripheralInterrupts, dsw2: DSW2):
+    def __init__(self, mcu: PIC18F8680, interrupts: PeripheralInterrupts):
         self.mcu = mcu
-        self.dsw2 = dsw2
+        self.ends: dict[str, SerialEnd] = {}
+        # Which end the board wires TX and RX to now (its `route`), None for nowhere: the board sets it (DSW2).
+        self.wired_to: Callable[[], str | None] = lambda: None
         self._txsta = 0
         self._rcsta = 0
         self._baudcon = 0
@@ -117,8 +124,6 @@ class USART:
         self._fifo: deque[Received] = deque()
         self._last_read = 0
         self._overrun = False
-        self.usb = SerialEnd(self, USB, "PIC18F2550 USB-CDC")
-        self.con9 = SerialEnd(self, CON9, "CON9 RS-232")
         interrupts.provide(TXIF, lambda: bool(self._txsta & _TXEN) and self._txreg is None)
         interrupts.provide(RCIF, lambda: bool(self._fifo))
         mcu.read_side_effects.add(_RCREG)
@@ -202,9 +207,8 @@ class USART:
 
     def _sent(self, byte: int) -> None:
         self._sending = None
-        route = self.dsw2.route
-        if route is not None:
-            end = self.usb if route == USB else self.con9
+        end = self.ends.get(self.wired_to() or "")
+        if end is not None:
             for listener in list(end.listeners):
                 listener(byte, self.mcu.sim.now)
         self._load_shift_register()
@@ -255,11 +259,3 @@ def _sample(byte: int, sent_bit_ps: int, bit_ps: int, data_bits: int) -> tuple[i
     bits = [level(bit_ps // 2 + (i + 1) * bit_ps) for i in range(data_bits)]
     return sum(bit << i for i, bit in enumerate(bits)), bits[-1], level(bit_ps // 2 + (data_bits + 1) * bit_ps)
 
-
-def attach_usart(mcu: PIC18F8680, interrupts: PeripheralInterrupts, dsw2: DSW2) -> USART:
-    """Give `mcu` its USART, with TXIF/RCIF in `interrupts` (PIR1) and its pins routed by `dsw2`."""
-    if "TXSTA" in mcu.sfr_addresses:
-        raise ValueError(f"{mcu.name} already has its USART")
-    usart = USART(mcu, interrupts, dsw2)
-    mcu.map(usart, USART_REGISTERS.items())
-    return usart

@@ -127,7 +127,7 @@ def CloseADC() -> None:
     mcu.write_name("ADCON0", mcu.read_name("ADCON0") & ~_ADON)
 
 
-# What firmware sees (`from appsim.firmware import *`); the board side is ADC and attach_adc.
+# What firmware sees (`from appsim.firmware import *`); the chip side is appsim.chip.adc.ADC.
 __all__ = (
     ["OpenADC", "SetChanADC", "ConvertADC", "BusyADC", "ReadADC", "CloseADC",
      "ADC_FOSC_2", "ADC_FOSC_4", "ADC_FOSC_8", "ADC_FOSC_16", "ADC_FOSC_32", "ADC_FOSC_64", "ADC_FOSC_RC",

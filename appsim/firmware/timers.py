@@ -65,7 +65,7 @@ def CloseTimer1() -> None:
     mcu.set_bits("PIE1", 1 << TMR1IF, False)
 
 
-# What firmware sees (`from appsim.firmware import *`); the board side is Timer1 and attach_timer1.
+# What firmware sees (`from appsim.firmware import *`); the chip side is appsim.chip.timer1.Timer1.
 __all__ = [
     "T1_8BIT_RW",
     "T1_16BIT_RW",
