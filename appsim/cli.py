@@ -29,8 +29,8 @@ def _seconds(text: str, what: str = "simulated time", most: int = DAY) -> float:
     return value
 
 
-def _wall_seconds(text: str) -> float:
-    return _seconds(text, "the time limit (wall-clock seconds)", HOUR)
+def _cpu_seconds(text: str) -> float:
+    return _seconds(text, "the time limit (CPU seconds)", HOUR)
 
 
 def _exercise(text: str) -> int:
@@ -206,8 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="Gradescope results.json (one submission), else a folder of NAME.json")
     grade.add_argument("--jobs", type=_jobs, default=None, help="exercises graded at once (default: the cores)")
     grade.add_argument("--seed", type=int, help="seed of the random inputs (default: the results file's, else drawn)")
-    grade.add_argument("--time-limit", type=_wall_seconds, default=60.0,
-                       help="wall-clock seconds per exercise (default 60; 10 s without a register access stop it)")
+    grade.add_argument("--time-limit", type=_cpu_seconds, default=60.0,
+                       help="CPU seconds per exercise, the firmware's and the grader's for it (default 60); waiting "
+                            "for a busy machine's CPU does not count; 10 s asleep stop it")
     grade.add_argument("--regrade", action="store_true",
                        help="grade every submission again (by default a submission whose files, seed and kit are "
                             "unchanged keeps its record)")

@@ -375,3 +375,53 @@ def test_ctrl_c_ends_with_one_line_exit_130_and_keeps_what_was_graded(tmp_path):
     assert "interrupted" in err and "run the same command again" in err and "Traceback" not in err
     kept = [json.loads(line)["submission"] for line in results.read_text().splitlines()]
     assert kept and kept == [line.split()[1] for line in out.splitlines() if line.startswith("[")]
+
+
+def _graded_alone(tmp_path: Path, exercise: str, source: str, limits: Limits) -> dict:
+    (tmp_path / "class" / "sam").mkdir(parents=True)
+    (tmp_path / "class" / "sam" / EXERCISE_FILES[exercise]).write_text(source)
+    [record] = run([tmp_path / "class"], results=tmp_path / "grades.jsonl", jobs=1, seed=SEED, limits=limits,
+                   out=io.StringIO())
+    return record["exercises"][exercise]
+
+
+def test_a_firmware_that_keeps_the_grader_busy_is_stopped_by_the_grader_s_cpu_time(tmp_path):
+    """A write and a read on every turn of the loop, never waiting: each read crosses to the board. The grader's own
+    CPU time for it counts against the limit, so it ends as "time" with its reason, long before the wall time."""
+    chatty = firmware("while True:\n    SFR.TXB0D0 = 1\n    SFR.TXB0D0")
+    started = time.monotonic()
+    result = _graded_alone(tmp_path, "ex1", chatty, Limits(time_s=1, stall_s=5, wall_time_s=120))
+    assert result["fault"] == "time" and result["score"] == 0
+    assert "CPU time limit: simulating the board for this firmware took the grader more than 1 s" in \
+        result["checks"][0]["message"]
+    assert time.monotonic() - started < 60
+
+
+def test_a_busy_machine_does_not_cost_a_student_points(tmp_path):
+    """The classic Ex2 slip (TMR1IF never cleared: it converts and tries to send on every turn) read ten registers a
+    turn; graded while every core is busy with other work, it gets the marks `appsim check` gives it, because the
+    limit counts CPU time, not the wall clock of a shared machine."""
+    source = solution("ex2").replace("            PIR1bits.TMR1IF = 0\n", "")
+    (tmp_path / "ex2.py").write_text(source)
+    expected = check("ex2", tmp_path / "ex2.py", seed=SEED).to_dict()
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 1)]
+    try:
+        result = _graded_alone(tmp_path, "ex2", source, Limits(time_s=20, stall_s=5))
+    finally:
+        for burner in burners:
+            burner.kill()
+            burner.wait()
+    assert result["fault"] is None, result["checks"][0]["message"]
+    assert (result["score"], [c["passed"] for c in result["checks"]]) == \
+        (expected["score"], [c["passed"] for c in expected["checks"]])
+
+
+def test_a_firmware_that_sleeps_between_accesses_is_stopped_by_its_time_asleep(tmp_path):
+    """A firmware that touches a register every 0.4 s (never long enough without a word to be stalled) sleeps in all
+    beyond the stall time: it ends as "stalled", saying it slept, without waiting for the wall-time limit."""
+    sleeper = firmware("import time\nwhile True:\n    SFR.TMR1L\n    time.sleep(0.4)")     # time-varying: never parks
+    started = time.monotonic()
+    result = _graded_alone(tmp_path, "ex1", sleeper, Limits(time_s=30, stall_s=2, wall_time_s=300))
+    assert result["fault"] == "stalled" and result["score"] == 0
+    assert "the firmware slept: more than 2 s in all" in result["checks"][0]["message"]
+    assert time.monotonic() - started < 60

@@ -219,7 +219,7 @@ class _Pool:
         waiting = collections.deque(_Task(n, s, e) for n, (s, e) in
                                     enumerate((s, e) for s in submissions for e in ORDER))
         done: dict[str, dict[str, Record]] = {s.name: {} for s in submissions}
-        allowed_s = self.limits.time_s + BOOT_S + SLACK_S
+        allowed_s = self.limits.wall_s + BOOT_S + SLACK_S
         selector = selectors.DefaultSelector()
 
         def next_task(worker: _Worker) -> None:

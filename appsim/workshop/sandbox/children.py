@@ -10,7 +10,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 from appsim.errors import SandboxUnavailable
 from appsim.workshop.sandbox import protocol as wire
@@ -25,16 +25,25 @@ BOOT_ATTEMPTS = 3
 
 @dataclass(frozen=True)
 class Limits:
-    """What one exercise's firmware may use: wall time in all (loading and running), wall time without a word to
-    the board, memory, and the size of a file it writes."""
+    """What one exercise's firmware may use: CPU time (its own process's, and the grader's in simulating for it), time
+    asleep (`stall_s`: at once, without a word to the board, and in all), memory, and the size of a file it writes.
+    Waiting for a CPU is not counted, so a busy machine does not cut a run short; as a last resort, the wall time in
+    all (loading and running) is limited too, by default to `WALL_PER_CPU` times the CPU time."""
 
     time_s: float = 60.0
     stall_s: float = 10.0
     memory_mb: int = 256
     file_mb: int = 16
+    wall_time_s: float | None = None
+
+    WALL_PER_CPU: ClassVar[int] = 10
+
+    @property
+    def wall_s(self) -> float:
+        return self.wall_time_s if self.wall_time_s is not None else self.WALL_PER_CPU * self.time_s
 
     def __post_init__(self) -> None:
-        if not (self.time_s > 0 and self.stall_s > 0 and self.memory_mb > 0 and self.file_mb > 0):
+        if not (self.time_s > 0 and self.stall_s > 0 and self.memory_mb > 0 and self.file_mb > 0 and self.wall_s > 0):
             raise ValueError(f"sandbox limits are positive numbers; got {self}")
 
 
@@ -67,6 +76,7 @@ class Child:
             argv = isolation.command(argv, read)
         self.expires_at = time.monotonic() + BOOT_S
         self.expired = False
+        self.isolated = isolation is not None
         try:
             self.process = subprocess.Popen(argv, pass_fds=theirs, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                             stderr=subprocess.PIPE, start_new_session=True, cwd="/",
@@ -87,6 +97,19 @@ class Child:
             return self.channel.receive() == wire.HELLO
         except ProtocolError:
             return False
+
+    def firmware_pid(self) -> int | None:
+        """The firmware's own process as this system numbers it (inside the sandbox, bubblewrap's one child), None if
+        it cannot be told."""
+        pid = self.process.pid
+        if not self.isolated:
+            return pid
+        try:
+            with open(f"/proc/{pid}/task/{pid}/children") as children:
+                inner = children.read().split()
+        except OSError:
+            return None
+        return int(inner[0]) if len(inner) == 1 else None
 
     def why_not(self) -> str:
         """What a child that never said hello printed (bubblewrap's or Python's own error), for the grader's log."""

@@ -1,7 +1,7 @@
 """The grader's side of a sandboxed firmware: a child loads the file, the board runs its main(), each access crosses.
 
-Every wait has a deadline (the exercise's wall-time budget, and the time the firmware may go without a word); every
-message is decoded strictly; whatever the child does, it ends as a `Fault` of its own exercise and nothing else.
+Every wait has a deadline (the time the firmware may go without a word, and a last-resort wall time); the grader's CPU
+time for it and the time it sleeps are counted against its limits (`usage`); every message is decoded strictly; whatever the child does, it ends as a `Fault` of its own exercise and nothing else.
 """
 from __future__ import annotations
 
@@ -18,10 +18,12 @@ from appsim.workshop.faults import EXITED, RETURNED, Fault, FirmwareFault, stall
 from appsim.workshop.sandbox import protocol as wire
 from appsim.workshop.sandbox.children import DEFAULT_LIMITS, Child, Limits, Sandbox
 from appsim.workshop.sandbox.protocol import Access, ProtocolError
+from appsim.workshop.sandbox.usage import Usage
 
 __all__ = ["DEFAULT_LIMITS", "Limits", "Sandbox", "SandboxedFirmware"]
 
-READ_AHEAD_REGISTERS = 6          # a read-ahead offers the registers read last, at most this many (a polling loop's)
+LONG_WAIT_S = 0.05                # a wait for the firmware this long is followed by a look at what it used
+READ_AHEAD_REGISTERS = 16         # a read-ahead offers the registers read last, this many at most: a main loop's (Ex2's reads ten)
 
 
 # ====================================================================== a firmware file, run in a child
@@ -35,10 +37,11 @@ class SandboxedFirmware:
         self.name = name
         self.source = source
         self.limits = limits
-        self.deadline = time.monotonic() + limits.time_s
+        self.deadline = time.monotonic() + limits.wall_s
         self.fault: Fault | None = None
         self.round_trips = 0
         self._child: Child | None = None
+        self._usage: Usage | None = None
         self._error: Exception | None = None
         # The registers the firmware read last, most recent last: those a read-ahead offers (a polling loop's).
         self._reads: dict[int, None] = {}
@@ -69,6 +72,9 @@ class SandboxedFirmware:
         if self._child is not None:
             self._child.kill()
             self._child = None
+        if self._usage is not None:
+            self._usage.close()
+            self._usage = None
 
     # -------------------------------------------------------------- running: the board's firmware process
     def _main(self) -> None:
@@ -87,16 +93,26 @@ class SandboxedFirmware:
         raise FirmwareFault(self._ends(fault))
 
     def _serve(self, mcu: PIC18F8680) -> Fault:
-        """Perform the child's accesses on `mcu` until it ends; how it ended.
+        """Perform the child's accesses on `mcu` until it ends, or goes over a limit; how it ended."""
+        assert self._child is not None
+        self._usage = Usage(self._child.firmware_pid())
+        return self._serve_loop(mcu, self._usage)
 
-        The hot path, a lone register read (most messages), is done inline: one read and one write of the pipes.
-        """
+    def _serve_loop(self, mcu: PIC18F8680, usage: Usage) -> Fault:
+        """The hot path, a lone register read (most messages), is done inline: one read and one write of the pipes.
+        What the firmware used is looked at every 64 messages, and after each long wait for one."""
         child = self._child
         assert child is not None
         channel = child.channel
-        read_fd, write_fd, monotonic = channel.read_fd, channel.write_fd, time.monotonic
+        read_fd, monotonic = channel.read_fd, time.monotonic
         stall_s, deadline = self.limits.stall_s, self.deadline
+        turns, now = 0, monotonic()
         while True:
+            turns += 1
+            if not turns & 0x3F or monotonic() - now > LONG_WAIT_S:
+                fault = self._over(usage)
+                if fault is not None:
+                    return fault
             if not channel.buffered():
                 now = monotonic()
                 child.expires_at = min(deadline, now + stall_s)
@@ -234,15 +250,31 @@ class SandboxedFirmware:
                                    "main() loops forever, as main() does in EX1.C")
         status, cpu_s = ended
         if status in (-signal.SIGXCPU, -signal.SIGKILL) and cpu_s >= child.cpu_limit_s - 1:
-            return Fault("time", f"CPU time limit: the firmware computed for more than {self.limits.time_s:g} s")
+            return Fault("time", f"CPU time limit: the firmware computed for more than {self.limits.time_s:g} s "
+                                 "in its own process")
         if status == -signal.SIGSYS:
             return Fault("forbidden", "the firmware made a system call of another ABI (32-bit or x32), which the "
                                       "sandbox stops at once")
         return EXITED
 
+    def _over(self, usage: Usage) -> Fault | None:
+        """The limit the firmware has gone over, if any: the grader's CPU time, or its time asleep in all."""
+        used = usage.used()
+        if used.grader_cpu > self.limits.time_s:
+            return self._cpu_time()
+        if used.idle is not None and used.idle > self.limits.stall_s:
+            return Fault("stalled", f"the firmware slept: more than {self.limits.stall_s:g} s in all went by with "
+                                    "the board waiting for it while it neither computed nor touched a register")
+        return None
+
     def _time(self) -> Fault:
-        return Fault("time", f"time limit: the exercise took more than {self.limits.time_s:g} s of wall time, loading "
+        return Fault("time", f"time limit: the exercise took more than {self.limits.wall_s:g} s of wall time, loading "
                              "and running; firmware this slow would not keep up with the bus")
+
+    def _cpu_time(self) -> Fault:
+        return Fault("time", f"CPU time limit: simulating the board for this firmware took the grader more than "
+                             f"{self.limits.time_s:g} s of CPU (a firmware that reads and writes registers without end, "
+                             "never waiting for the bus)")
 
     def _ends(self, fault: Fault) -> Fault:
         self.close()
