@@ -19,7 +19,7 @@ from appsim.bus.monitor import HEADER, LiveTrace, TraceLog, cannot_write, error_
 from appsim.bus.realtime import WallClock
 from appsim.bus.wire import Bus
 from appsim.firmware.loader import constants, load_firmware
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import PS_PER_SECOND, Simulator, ps
 from appsim.workshop.classroom import Classroom, station_defines
 from appsim.workshop.course import CLASSROOM_BIT_RATE, SOLUTIONS, STATIONS, station_ids
 from appsim.workshop.faults import board_fault
@@ -77,7 +77,7 @@ class Session:
         clock.run(seconds)
 
     def _fast(self, seconds: float) -> None:
-        end = round(seconds * PS_PER_SECOND)
+        end = ps(seconds)
         step = PS_PER_SECOND // 2
         progress = seconds >= 5 and sys.stderr.isatty()
         while self.sim.now < end:

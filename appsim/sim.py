@@ -110,6 +110,10 @@ class Simulator:
             finally:
                 self.running = None
 
+    def run_for(self, seconds_: float) -> None:
+        """Advance simulated time by `seconds_` from now."""
+        self.run(until=self.now + ps(seconds_))
+
     def _run(self, until: int | None) -> None:
         """Events and ready processes share one (time, order) sequence: `order` comes from one counter,
         so comparing the heads of the two heaps as tuples never gets past it."""

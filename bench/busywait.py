@@ -44,5 +44,5 @@ def wall_ms_per_simulated_second(with_frames: bool, simulated_s: float = 10.0) -
         APP023(bus, "sender").run(sender)
     sim.run(until=PS_PER_SECOND // 100)             # initialised
     started = time.perf_counter()
-    sim.run(until=sim.now + round(simulated_s * PS_PER_SECOND))
+    sim.run_for(simulated_s)
     return (time.perf_counter() - started) * 1e3 / simulated_s

@@ -16,7 +16,7 @@ from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
 from appsim.firmware import *  # noqa: F403  (the nodes are firmware, as the students write it)
 from appsim.chip.mcu import FOSC_HZ
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import Simulator, ps
 
 BIT_RATE = 1_000_000
 WARM_UP_S = 0.005               # CANInitialize and the first frames, not timed
@@ -122,9 +122,9 @@ def run(nodes: int = 7, load: float = 1.0, simulated_s: float = 0.1, *, bit_rate
     for k in range(nodes):
         firmware = node_firmware(k, nodes, received, period, bit_rate=bit_rate, one_sender=one_sender)
         APP023(bus, f"node{k}").run(firmware)
-    sim.run(until=round(WARM_UP_S * PS_PER_SECOND))
+    sim.run(until=ps(WARM_UP_S))
     start_ps, first_frame, read_before = sim.now, len(bus.trace), sum(received)
-    end_ps = start_ps + round(simulated_s * PS_PER_SECOND)
+    end_ps = start_ps + ps(simulated_s)
     started = time.perf_counter()
     sim.run(until=end_ps)
     wall = time.perf_counter() - started

@@ -12,7 +12,7 @@ import can
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
 from appsim.firmware import CAN_CONFIG_VALID_STD_MSG, CANInitialize, CANIsRxReady, CANReceiveMessage
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import Simulator, ps
 from bench import fullload
 
 RECEIVERS = 6
@@ -27,10 +27,10 @@ def kit_fps(simulated_s: float = 0.05) -> float:
     APP023(bus, "sender").run(fullload.node_firmware(0, 1, received))
     for k in range(1, RECEIVERS + 1):
         APP023(bus, f"receiver{k}").run(receiver_firmware(k, received))
-    sim.run(until=round(fullload.WARM_UP_S * PS_PER_SECOND))
+    sim.run(until=ps(fullload.WARM_UP_S))
     before = sum(received)
     started = time.perf_counter()
-    sim.run(until=sim.now + round(simulated_s * PS_PER_SECOND))
+    sim.run_for(simulated_s)
     wall = time.perf_counter() - started
     return (sum(received) - before) / RECEIVERS / wall
 

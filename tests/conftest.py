@@ -7,7 +7,7 @@ import pytest
 
 from appsim.bus.wire import Bus
 from appsim.chip.mcu import PIC18F8680
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import Simulator
 
 
 class World:
@@ -24,7 +24,7 @@ class World:
         return mcu
 
     def run(self, seconds: float = 0.1) -> None:
-        self.sim.run(until=self.sim.now + round(seconds * PS_PER_SECOND))
+        self.sim.run_for(seconds)
         for process in self.sim.processes:
             if process.failure is not None:
                 raise AssertionError(f"firmware {process.name} crashed:\n{process.failure_text}")

@@ -57,7 +57,7 @@ class Classroom:
         self.bus.attach(PIC18F8680(self.sim, name)).run(main)
 
     def run(self, seconds):
-        self.sim.run(until=self.sim.now + round(seconds * PS_PER_SECOND))
+        self.sim.run_for(seconds)
         for process in self.sim.processes:
             assert process.failure is None, f"firmware {process.name} crashed:\n{process.failure_text}"
 

@@ -12,7 +12,7 @@ from workshop import KIT, MS, classroom, payload, sent
 
 from appsim.can.frame import CanFrame
 from appsim.bus.controller import Mode
-from appsim.sim import PS_PER_SECOND
+from appsim.sim import ps
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.faults import board_fault
 
@@ -225,7 +225,7 @@ def test_reading_past_a_short_frame_is_reported_in_the_workshops_words(tmp_path)
     outside = Outside(room.bus)
     room.run(0.12)
     outside.send(CanFrame(0x088, b"\x01"))
-    room.bus.sim.run(until=round(0.2 * PS_PER_SECOND))
+    room.bus.sim.run(until=ps(0.2))
     line = next(n for n, text in enumerate(unguarded.read_text().splitlines(), 1) if "RxData[3]" in text)
     fault = board_fault(room.station(1).mcu.process)
     assert fault is not None and fault.kind == "exception"

@@ -13,7 +13,7 @@ from appsim.board.app023 import APP023
 from appsim.board.usbcdc import LEFT, NOBODY, UsbCdc
 from appsim.bus.wire import Bus
 from appsim.firmware import *  # noqa: F403
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import PS_PER_SECOND, Simulator, ps
 
 LINK_19200 = (USART_TX_INT_OFF & USART_RX_INT_OFF & USART_ASYNCH_MODE & USART_EIGHT_BIT
               & USART_CONT_RX & USART_BRGH_HIGH, 129)
@@ -58,7 +58,7 @@ def bridged(main, transport="pty"):
 
 def run(sim, seconds, poll=None):
     """Run in 1 ms slices, polling the bridge between them (what WallClock does, minus the pacing)."""
-    end = sim.now + round(seconds * PS_PER_SECOND)
+    end = sim.now + ps(seconds)
     while sim.now < end:
         if poll is not None:
             poll()

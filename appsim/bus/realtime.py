@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import PS_PER_SECOND, Simulator, ps
 
 SLICE_PS = PS_PER_SECOND // 1000        # 1 ms: the latency an outside frame or byte can see
 
@@ -37,7 +37,7 @@ class WallClock:
         """Run for `seconds` of simulated time (None: until `stop()` or Ctrl-C), paced to the wall clock."""
         sim = self.sim
         start_ps, start_wall = sim.now, time.perf_counter()
-        end_ps = None if seconds is None else start_ps + round(seconds * PS_PER_SECOND)
+        end_ps = None if seconds is None else start_ps + ps(seconds)
         while (end_ps is None or sim.now < end_ps) and not (stop is not None and stop()):
             self.poll()
             target = sim.now + self.slice_ps if end_ps is None else min(sim.now + self.slice_ps, end_ps)

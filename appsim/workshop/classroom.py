@@ -19,7 +19,6 @@ from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
 from appsim.firmware.loader import FirmwareError, constants, load_firmware
 from appsim.chip.mcu import PIC18F8680
-from appsim.sim import PS_PER_SECOND
 from appsim.workshop import course
 from appsim.workshop.course import CLASSROOM_EXERCISES, STATIONS, station_ids
 
@@ -124,7 +123,7 @@ class Classroom:
     def run(self, seconds: float) -> None:
         """Let the class run for `seconds` of simulated time; a board whose firmware crashed is an error."""
         sim = self.bus.sim
-        sim.run(until=sim.now + round(seconds * PS_PER_SECOND))
+        sim.run_for(seconds)
         for board in self.boards:
             process = board.mcu.process
             if process is not None and process.failure is not None:

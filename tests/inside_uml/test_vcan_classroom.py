@@ -7,12 +7,12 @@ import sys
 from appsim.bus.wire import Bus
 from appsim.workshop.classroom import Classroom
 from appsim.bus.link import BusLink
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import PS_PER_SECOND, Simulator, ps
 
 
 def run(sim: Simulator, link: BusLink, seconds: float) -> None:
     """Fast-forward with the link polled every millisecond (no pacing needed: vcan buffers frames)."""
-    end = sim.now + round(seconds * PS_PER_SECOND)
+    end = sim.now + ps(seconds)
     while sim.now < end:
         link.poll()
         sim.run(until=min(end, sim.now + PS_PER_SECOND // 1000))

@@ -14,7 +14,7 @@ import pytest
 from appsim.bus.link import DLC_ABOVE_8, ERROR_FRAME, FD_FRAME, REOPEN_EVERY_S, BusLink
 from appsim.bus.realtime import WallClock
 from appsim.bus.wire import Bus
-from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.sim import Simulator, ps
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.course import STATIONS, station_ids
 
@@ -35,7 +35,7 @@ class LinkedClassroom:
 
     def at(self, seconds: float, action: Callable[[], object]) -> None:
         """Do `action` once the simulated clock reaches `seconds`, between two slices of a run."""
-        due = round(seconds * PS_PER_SECOND)
+        due = ps(seconds)
 
         def poll() -> None:
             if self.sim.now >= due and poll in self.clock.pollers:

@@ -217,7 +217,7 @@ class Trial:
     def run(self, seconds: float) -> None:
         """Run the simulated clock; the student's firmware crashing, hanging or returning is `Fatal`."""
         sim = self.bus.sim
-        sim.run(until=sim.now + round(seconds * PS_PER_SECOND))
+        sim.run_for(seconds)
         process = self.board.mcu.process
         assert process is not None, "the student's firmware was started in Trial.classroom"
         if process.failure is not None:
