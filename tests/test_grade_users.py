@@ -3,6 +3,7 @@ lives in a private (0700) home, and as an ordinary user (with the kit installed 
 private home) — the grading and attack tests pass there as they do here."""
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import stat
@@ -78,3 +79,23 @@ def test_the_grading_and_attack_tests_pass_as_an_ordinary_user():
         assert " passed" in result.stdout and "skipped" not in result.stdout.splitlines()[-1]
     finally:
         shutil.rmtree(copy, ignore_errors=True)
+
+
+def test_a_second_checkout_grades_with_its_own_code_from_its_own_folder(tmp_path):
+    """`python -m appsim grade` in a checkout while another copy of the kit is installed (an instructor's second
+    clone, a CI clone in /tmp): the workers and their sandboxes run the checkout's code, as the command does."""
+    from test_wheel import _tracked_copy
+
+    checkout = _tracked_copy(tmp_path / "second-clone")
+    marker = "# the second checkout's own code\n"
+    grade_py = checkout / "appsim" / "workshop" / "grading" / "worker.py"
+    grade_py.write_text(marker + grade_py.read_text())
+    room = a_class(tmp_path)
+    result = subprocess.run([sys.executable, "-m", "appsim", "grade", str(room), "--seed", "5"], cwd=checkout,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "alice                     35/35" in result.stdout, result.stdout + result.stderr
+    kits = {json.loads(line)["kit"] for line in (tmp_path / "class.grades.jsonl").read_text().splitlines()}
+    ours = subprocess.run([sys.executable, "-c", "from appsim.workshop.grading.results import kit_version; "
+                           "print(kit_version())"], cwd=checkout, capture_output=True, text=True, check=True)
+    assert kits == {ours.stdout.strip()}, "the records carry the checkout's own kit version"

@@ -20,6 +20,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any, TextIO
 
+import appsim
 from appsim.errors import GradeError, SandboxUnavailable
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
 from appsim.workshop.faults import Fault
@@ -40,7 +41,12 @@ from appsim.workshop.grading.submissions import Submission, find_submissions
 from appsim.workshop.sandbox.children import BOOT_S, DEFAULT_LIMITS, Limits, Sandbox
 from appsim.workshop.sandbox.isolation import Isolation, isolation
 
-WORKER = "import sys; del sys.path[0]; from appsim.workshop.grading.worker import main; main()"
+# A worker imports the grader's own appsim (wherever it came from: an installation, or the checkout the grader runs
+# in), by its location and nothing else of that folder, so a worker and its sandboxes never run another copy.
+WORKER = ("import sys, importlib.util; del sys.path[0]; kit = sys.argv[1]; "
+          "spec = importlib.util.spec_from_file_location('appsim', kit + '/__init__.py', "
+          "submodule_search_locations=[kit]); sys.modules['appsim'] = appsim = importlib.util.module_from_spec(spec); "
+          "spec.loader.exec_module(appsim); from appsim.workshop.grading.worker import main; main()")
 SLACK_S = 30.0                      # a worker may take this much longer than an exercise's own limits, then it is ended
 ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest first, so the workers finish together
 
@@ -158,7 +164,8 @@ class _Worker:
 
     def __init__(self, settings: str, processor: int | None):
         self.log: IO[bytes] = tempfile.TemporaryFile()
-        self.process = subprocess.Popen([sys.executable, "-c", WORKER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+        kit = os.path.dirname(os.path.abspath(appsim.__file__))
+        self.process = subprocess.Popen([sys.executable, "-c", WORKER, kit], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                         stderr=self.log, text=True, encoding="utf-8")
         if processor is not None:
             try:
