@@ -15,10 +15,13 @@ queue in RAM; when it is full they are counted and the monitor says how many it 
     # lost 7 frames (queue full: the USART at 19200 baud is slower than the bus)
 
 DSW2 switch 1 ON at reset (RJ0 reads 0): the board is an SLCAN (Lawicel) adapter instead, so a PC
-program such as python-can (`interface="slcan"`) can receive and send frames through it. The PC may
-write faster than the adapter answers (opening the channel waits for the bus to go idle): when the
-USART's 2-byte FIFO overruns (OERR), the adapter resets its receiver, counts it, and refuses the
-command that lost bytes with BELL, so it always answers the next one.
+program such as python-can (`interface="slcan"`) can receive and send frames through it. PC programs
+write commands without waiting for answers (python-can writes C S4 CR O O, then V or a frame at once),
+while opening or closing the channel waits for the bus to go idle (1 to 3 ms on a busy bus), longer
+than the USART's 2-byte FIFO holds (1 ms at 19200 baud): the adapter keeps moving what the USART
+receives into RAM meanwhile. Only a PC that keeps writing faster than the adapter carries out commands
+fills that too: when the FIFO then overruns (OERR), the adapter resets its receiver, counts it, and
+refuses the command that lost bytes with BELL, so it always answers the next one.
 """
 from appsim.can import slcan
 from appsim.firmware import *
@@ -26,6 +29,8 @@ from appsim.can.frame import CanFrame
 
 QUEUE_FRAMES = 16             # frames waiting for the USART (13 bytes of RAM each)
 COMMAND_CHARS = 32            # longest SLCAN command: T + 8 + 1 + 16 = 26 characters
+RECEIVED_BYTES = 32           # bytes from the PC waiting to be carried out: 16 ms at 19200 baud
+LOST = 0x100                  # among them: here the USART lost bytes (OERR)
 OUTPUT_BYTES = 64             # SLCAN answers and frame lines waiting for the USART
 LONGEST_ANSWER = len(slcan.VERSION) + len(slcan.OK)     # V1013 CR
 
@@ -51,6 +56,7 @@ queue = []                    # received frames (time, CANMessage) and ("lost", 
 lost = 0                      # frames dropped since the last queued one
 output = bytearray()          # the line being sent, byte by byte
 usart_overruns = 0            # times the USART's receiver overran (OERR): each lost at least one byte from the PC
+received = []                 # SLCAN: bytes from the PC (and LOST marks), oldest first
 
 
 def now_ticks():
@@ -144,7 +150,10 @@ class Adapter:
         self.status = 0
 
     def take(self, char):
-        """One byte from the PC; at the CR that ends a command, the answer to send."""
+        """One byte from the PC (or LOST); at the CR that ends a command, the answer to send."""
+        if char == LOST:                        # the command being received lost bytes (after the FIFO's two)
+            self.spoiled = True
+            return b""
         if char != 0x0D:
             if len(self.command) < COMMAND_CHARS:
                 self.command.append(char)
@@ -175,12 +184,12 @@ class Adapter:
                 return slcan.ERROR
             CANSetBaudRate(*SLCAN_TIMING[self.code])
             self.mode = CAN_OP_MODE_LISTEN if command.listen_only else CAN_OP_MODE_NORMAL
-            CANSetOperationMode(self.mode)
+            set_mode(self.mode)
             return slcan.OK
         if isinstance(command, slcan.Close):
             if self.mode is None:
                 return slcan.ERROR
-            CANSetOperationMode(CAN_OP_MODE_CONFIG)
+            set_mode(CAN_OP_MODE_CONFIG)
             self.mode = None
             queue.clear()
             lost = 0
@@ -233,20 +242,36 @@ class Adapter:
         return slcan.encode_frame(frame, millis)
 
 
-def adapter():
+def listen():
+    """Move a byte the USART received into `received`, while it has room (else the FIFO fills and overruns)."""
     global usart_overruns
+    if len(received) >= RECEIVED_BYTES:
+        return
+    if DataRdyUSART():
+        received.append(ReadUSART())
+    elif RCSTAbits.OERR:                       # a byte came with the FIFO full: lost, and reception stopped
+        RCSTAbits.CREN = 0                     # the data sheet's recovery: clearing CREN clears OERR,
+        RCSTAbits.CREN = 1                     # setting it receives again
+        usart_overruns += 1
+        received.append(LOST)
+
+
+def set_mode(mode):
+    """CANSetOperationMode, listening to the PC while it waits: the ECAN changes mode only when the bus is
+    idle (1 to 3 ms on a busy bus), and the USART's FIFO holds 1 ms of what the PC writes meanwhile."""
+    CANSetOperationModeNoWait(mode)
+    while (SFR.CANSTAT & CAN_OP_MODE_BITS) != mode:
+        listen()
+
+
+def adapter():
     state = Adapter()
-    CANSetOperationMode(CAN_OP_MODE_CONFIG)    # closed until the PC sends O or L
+    set_mode(CAN_OP_MODE_CONFIG)               # closed until the PC sends O or L
     while True:
         count_overflows()
-        if len(output) + LONGEST_ANSWER <= OUTPUT_BYTES:   # room for an answer: listen to the PC
-            if DataRdyUSART():
-                output.extend(state.take(ReadUSART()))
-            elif RCSTAbits.OERR:               # a byte came with the FIFO full: lost, and reception stopped
-                RCSTAbits.CREN = 0             # the data sheet's recovery: clearing CREN clears OERR,
-                RCSTAbits.CREN = 1             # setting it receives again
-                usart_overruns += 1
-                state.spoiled = True           # the command being received lost bytes (after the FIFO's two)
+        listen()
+        if received and len(output) + LONGEST_ANSWER <= OUTPUT_BYTES:   # room for an answer: the PC's next byte
+            output.extend(state.take(received.pop(0)))
         if state.mode is not None and CANIsRxReady():
             receive()
         if queue and not output:

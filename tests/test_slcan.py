@@ -283,6 +283,9 @@ def test_python_can_uses_the_adapter_after_a_program_flooded_it_at_full_speed_an
     with UsbCdc(room.board, transport=transport) as usb:
         with serial.serial_for_url(usb.url) as flood:
             flood.write(b"O\rC\r" * 30 + bytes(range(256)))
+        clock = WallClock(room.sim)            # the flooding program has left before python-can comes, as in a lab:
+        clock.add_poller(usb.poll)             # on a pty, a program that opens the port as another closes it shares
+        clock.run(0.5)                         # its stream (the kernel cannot tell them apart)
         results = with_python_can(room, usb, pc_program)
     assert results["version"] == (10, 13), "python-can got the adapter's version"
     assert results["message"] is not None and results["message"].arbitration_id in (0x088, 0x0AA)
@@ -350,14 +353,35 @@ class PcOnThePort:
 
 
 def test_the_adapter_answers_again_after_the_pc_wrote_while_it_opened_the_channel():
-    """Opening waits for the bus to be idle (1 to 3 ms here) while the USART's FIFO holds two bytes (1 ms):
-    the third overruns it (OERR). The adapter clears CREN and sets it, counts it, and refuses the spoiled command."""
+    """Opening and closing wait for the bus to be idle (1 to 3 ms here): L CR C CR takes the adapter longer than
+    the 2 ms the PC takes to write it, so what waits fills the adapter's 32 bytes of RAM, then the USART's 2-byte
+    FIFO, and the next byte overruns it (OERR). The adapter clears CREN and sets it, counts it, and refuses the
+    spoiled command."""
     with PcOnThePort() as pc:
         sent = answers(pc.send(b"L\rC\r" * 30, seconds=0.1))
         firmware = pc.room.board.firmware
         assert firmware.usart_overruns > 0 and pc.usb.lost_to_board > 0, "the PC wrote faster than the adapter read"
         assert len(sent) < 60 and b"\a" in sent, "commands that lost bytes are refused with BELL, the rest answered"
         assert answers(pc.send(b"V\r", seconds=0.05)) == [b"V1013\r"]
+
+
+# What can.Bus(interface="slcan", bitrate=125000) writes: set_bitrate() closes, sets the bit rate and no data bit
+# rate, opens; then __init__ opens again. It reads none of the answers.
+PYTHON_CAN_OPENS = b"C\rS4\r\rO\rO\r"
+
+
+def test_what_python_can_writes_as_it_opens_the_channel_and_right_after_is_all_answered_on_a_busy_bus():
+    """python-can writes its commands without reading the answers: it opens and asks for the version (or sends
+    a frame) at once. Opening or closing waits for the busy bus to be idle, up to 3 ms, longer than the USART's
+    FIFO holds (1 ms): the adapter moves what the USART receives into RAM meanwhile, so that no byte is lost
+    wherever the bus is in its frames (1.1 ms) and gaps (0.5 ms) when the commands come."""
+    with PcOnThePort() as pc:
+        for start_us in range(0, 2000, 100):
+            pc.room.run(start_us / 1_000_000)
+            sent = answers(pc.send(PYTHON_CAN_OPENS + b"V\r", seconds=0.05))
+            closing = b"\a" if start_us == 0 else b"\r"          # the first C finds the channel closed
+            assert sent == [closing, b"\r", b"\r", b"\r", b"\a", b"V1013\r"], f"{start_us} us later"
+        assert pc.room.board.firmware.usart_overruns == 0 and pc.usb.lost_to_board == 0
 
 
 SLOW = ["O", "L", "C", "C\rO", "C\rL"]   # opening waits for the bus to be idle (about 1 to 3 ms here)
