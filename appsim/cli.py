@@ -8,6 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from appsim.chip.clock import FOSC_HZ
 from appsim.errors import FirmwareError, OutputError
 from appsim.workshop.course import CLASSROOM_BIT_RATE, CLASSROOM_EXERCISES, STATIONS
 
@@ -186,8 +187,9 @@ def build_parser() -> argparse.ArgumentParser:
                                  description="Every valid PIC18F8680 bit timing for a bit rate, best "
                                              "sample point first, with the BRGCON1..3 values.")
     timing.add_argument("bit_rate", type=int, nargs="?", default=CLASSROOM_BIT_RATE,
-                        help="bit rate in bit/s (default 125000, the classroom bus)")
-    timing.add_argument("--fosc", type=int, default=40_000_000, help="oscillator frequency in Hz (default 40 MHz)")
+                        help=f"bit rate in bit/s (default {CLASSROOM_BIT_RATE}, the classroom bus)")
+    timing.add_argument("--fosc", type=int, default=FOSC_HZ,
+                        help=f"oscillator frequency in Hz (default {FOSC_HZ // 10**6} MHz, the APP023's)")
     timing.add_argument("--top", type=int, default=10, help="how many settings to list (default 10)")
     timing.set_defaults(handler=cmd_bittiming)
 

@@ -15,7 +15,7 @@ from appsim.can.bittiming import calculate
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
 from appsim.firmware import *  # noqa: F403  (the nodes are firmware, as the students write it)
-from appsim.chip.mcu import FOSC_HZ
+from appsim.chip.clock import FOSC_HZ
 from appsim.sim import Simulator, ps
 
 BIT_RATE = 1_000_000

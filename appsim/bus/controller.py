@@ -21,6 +21,11 @@ class Mode(enum.IntEnum):
     LISTEN_ONLY = 0b011
     CONFIGURATION = 0b100
 
+    @property
+    def words(self) -> str:
+        """The mode as the workshop writes it: "Normal", "Listen-only", ..."""
+        return self.name.capitalize().replace("_", "-")
+
 
 class Wire(Protocol):
     """What a controller tells the wire it is attached to."""

@@ -49,7 +49,7 @@ def error_counters(bus: Bus) -> str:
         can = node.controller
         state = ("bus-off" if can.bus_off else "error-passive" if can.error_passive
                  else "warning" if max(can.tec, can.rec) >= 96 else "error-active")
-        mode = can.opmode.name.lower().replace("_", "-")
+        mode = can.opmode.words.lower()
         lines.append(f"{node.name:<10} {mode:<12} {can.tec:>4} {can.rec:>4}  {state}")
     return "\n".join(lines)
 

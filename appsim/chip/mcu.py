@@ -14,6 +14,7 @@ from typing import Any, Protocol
 import greenlet
 
 from appsim.chip.adc import ADC
+from appsim.chip.clock import FOSC_HZ
 from appsim.chip.ecan import registers as ecan_registers
 from appsim.chip.ecan.controller import ECAN
 from appsim.chip.interrupts import PeripheralInterrupts
@@ -26,7 +27,6 @@ from appsim.chip.timer1 import Timer1
 from appsim.chip.usart import USART
 from appsim.sim import PS_PER_SECOND, Process, Simulator
 
-FOSC_HZ = 40_000_000            # APP023: 10 MHz crystal with the 4x PLL
 SFR_ACCESS_CYCLES = 2           # a C statement touching an SFR: MOVFF / MOVF + MOVWF, with banking
 
 _getcurrent = greenlet.getcurrent

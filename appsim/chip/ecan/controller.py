@@ -9,8 +9,9 @@ from dataclasses import dataclass
 
 from appsim.bus.controller import Mode, Wire
 from appsim.can.bittiming import BitTiming
+from appsim.chip.clock import FOSC_HZ
 from appsim.chip.ecan import registers as R
-from appsim.chip.ecan.acceptance import Filter, buffer_hit, raw29, unpack_id
+from appsim.chip.ecan.acceptance import Filter, buffer_hit, pack_id, raw29, unpack_id
 from appsim.can.frame import CanFrame
 from appsim.errors import UnsupportedMode
 
@@ -77,7 +78,7 @@ class ECAN:
     is aborted!!" while the AN738 header says it has no side effects; the kit follows the workshop by default.
     """
 
-    def __init__(self, name: str = "ECAN", fosc: int = 40_000_000, *, changed: Callable[[], None] = lambda: None,
+    def __init__(self, name: str = "ECAN", fosc: int = FOSC_HZ, *, changed: Callable[[], None] = lambda: None,
                  mode_change_aborts_tx: bool = True):
         self.name = name
         self.fosc = fosc
@@ -401,15 +402,12 @@ class ECAN:
         """MAB -> RXBn: ID, DLC and data, RXRTRRO, FILHIT; then RXFUL and RXBnIF."""
         base = R.BUFFER_BASE[buffer] - 0xF00
         sfr = self._sfr
-        can_id = frame.can_id
+        sidh, sidl, eidh, eidl = pack_id(frame.can_id, frame.extended)
         if frame.extended:
-            sfr[base + 1] = (can_id >> 21) & 0xFF
-            sfr[base + 2] = ((can_id >> 13) & 0xE0) | R.EXIDE | ((can_id >> 16) & 0x03)
-            sfr[base + 3] = (can_id >> 8) & 0xFF
-            sfr[base + 4] = can_id & 0xFF
+            sfr[base + 1: base + 5] = bytes((sidh, sidl, eidh, eidl))
         else:   # SRR mirrors RXRTRRO for a standard frame (0 when EXID = 1); EIDH/EIDL keep their value
-            sfr[base + 1] = (can_id >> 3) & 0xFF
-            sfr[base + 2] = ((can_id << 5) & 0xE0) | (R.SRR if frame.remote else 0)
+            sfr[base + 1] = sidh
+            sfr[base + 2] = sidl | (R.SRR if frame.remote else 0)
         sfr[base + 5] = (R.RXRTR if frame.remote else 0) | frame.dlc
         sfr[base + 6: base + 6 + len(frame.data)] = frame.data
         if buffer == "RXB0":

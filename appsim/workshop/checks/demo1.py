@@ -7,6 +7,7 @@ import re
 from itertools import pairwise
 
 from appsim.bus.wire import BusEvent
+from appsim.chip.usart import PC_BAUD
 from appsim.workshop.checks.trial import Trial, count, listing
 from appsim.workshop.checks.verdict import CheckResult
 from appsim.sim import PS_PER_SECOND
@@ -18,7 +19,6 @@ LOST = "says when frames were lost"
 TIME = "time column counts up with the bus"
 NAMES = (BAUD, INVISIBLE, FORMAT, LOST, TIME)
 SECONDS = 1.0                     # ~95 frames on the bus, ~34 lines through 19200 baud: the queue fills, frames are lost
-PC_BAUD = 19_200
 BAUD_TOLERANCE = 0.02             # a UART receiver copes with about 2 %: 129 gives 19231 (+0.16 %)
 FEWEST_LINES = 5
 TIME_SLACK_S = 0.035              # a line can wait for the one before it (about 29 ms at 19200 baud)

@@ -15,7 +15,8 @@ from typing import Protocol
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus, BusEvent
 from appsim.can.frame import STANDARD_ID_MAX, CanFrame
-from appsim.bus.controller import Mode
+from appsim.chip.ecan.acceptance import raw29
+from appsim.chip.ecan.controller import ECAN
 from appsim.chip.mcu import PIC18F8680
 from appsim.errors import AppsimError, FirmwareError
 from appsim.firmware.loader import load_firmware
@@ -26,8 +27,6 @@ from appsim.workshop.faults import Fault, fault_of
 
 MS = PS_PER_SECOND // 1000
 TIMER1_PERIOD_PS = 65536 * 8 * 100_000          # Fosc/4 = 10 MHz with 1:8: 52.4288 ms
-MODES = {Mode.NORMAL: "Normal", Mode.DISABLE: "Disable", Mode.LOOPBACK: "Loopback",
-         Mode.LISTEN_ONLY: "Listen-only", Mode.CONFIGURATION: "Configuration"}
 __all__ = ["MASTER_ID"]
 
 
@@ -249,7 +248,7 @@ class Trial:
         return dict(event.received).get(self.name, "")
 
     def mode(self) -> str:
-        return MODES[self.board.ecan.opmode]
+        return self.board.ecan.opmode.words
 
     def acceptance(self, buffer: str) -> str:
         """RXB0's (or RXB1's) mask, filters and RXM as the registers hold them now, in the workshop's words."""
@@ -265,9 +264,9 @@ class Trial:
         return self.board.glcd.line(line)
 
 
-def sid(ecan, register: str) -> int:
-    """The 11-bit standard identifier in a filter or mask (RXFnSIDH/SIDL, RXMnSIDH/SIDL)."""
-    return (ecan.get(f"{register}SIDH") << 3) | (ecan.get(f"{register}SIDL") >> 5)
+def sid(ecan: ECAN, register: str) -> int:
+    """The 11-bit standard identifier in a filter or mask (RXFnSIDH/SIDL, RXMnSIDH/SIDL): its top 11 of 29 bits."""
+    return raw29(*(ecan.get(register + part) for part in ("SIDH", "SIDL", "EIDH", "EIDL"))) >> 18
 
 
 def took(reception: str) -> bool:
