@@ -18,6 +18,7 @@ from appsim.bus.link import BusLink
 from appsim.bus.monitor import HEADER, LiveTrace, TraceLog, cannot_write, error_counters, summary
 from appsim.bus.realtime import WallClock
 from appsim.bus.wire import Bus
+from appsim.chip.mcu import PIC18F8680
 from appsim.firmware.loader import constants, load_firmware
 from appsim.sim import PS_PER_SECOND, Simulator, ps
 from appsim.workshop.classroom import Classroom, station_defines
@@ -103,6 +104,8 @@ class Session:
         """Say once, for each board whose firmware is no longer running, which file it ran and why it stopped, with
         the line (`reported` names them)."""
         for mcu in self.bus.boards():
+            if not isinstance(mcu, PIC18F8680):
+                continue
             process = mcu.process
             if process is None or mcu.name in self.reported or (fault := board_fault(process)) is None:
                 continue

@@ -170,7 +170,7 @@ class Process(greenlet.greenlet):
     def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: contextvars.Context | None):
         super().__init__(self._body)
         if context is not None:
-            self.gr_context = context
+            self.gr_context = context   # type: ignore[misc]  # greenlet's own attribute (its context), not a slot
         self.sim = sim
         self.name = name
         self.main = main

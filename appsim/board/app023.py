@@ -57,5 +57,5 @@ class APP023:
             firmware = load_firmware(firmware)
         if isinstance(firmware, ModuleType):
             self.firmware = firmware
-            firmware = firmware.main
+            return self.mcu.run(firmware.main)
         return self.mcu.run(firmware)

@@ -55,7 +55,7 @@ def to_message(frame: CanFrame) -> can.Message:
                        is_extended_id=frame.extended, is_remote_frame=frame.remote)
 
 
-def _integer(value: object) -> int | None:
+def _integer(value: Any) -> int | None:
     """`value` as an int if it is an integer (numpy's included), else None."""
     try:
         return operator.index(value)
@@ -265,7 +265,7 @@ class BusLink:
 
     def _reopen(self) -> None:
         try:
-            outside = can.Bus(**self._config)
+            outside = can.Bus(**(self._config or {}))
         except Exception:   # noqa: BLE001 - still gone (python-can says why): try again later
             self._reopen_at = time.monotonic() + REOPEN_EVERY_S
             return

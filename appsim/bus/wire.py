@@ -5,6 +5,7 @@ who ACKs and who flags an error is decided at SOF from each node's mode, error s
 """
 from __future__ import annotations
 
+import functools
 from collections import deque
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -53,9 +54,11 @@ class BusEvent:
 class _Port(Protocol):
     """A node's attachment to the bus: what the protocol engine asks of a transmitter and a receiver."""
 
-    name: str
     rate_ok: bool
     suspend_until: int
+
+    @property
+    def name(self) -> str: ...
 
     @property
     def mode(self) -> Mode: ...
@@ -354,7 +357,7 @@ class Bus:
             if loser_key == key:
                 continue   # same identifier: both keep sending; settled below as a collision
             lost_at = now + _first_difference(key, loser_key) * self.bit_ps
-            self.sim.call_at(lost_at, lambda p=port, b=lost_buffer: p.lost(b))
+            self.sim.call_at(lost_at, functools.partial(port.lost, lost_buffer))
         same_id = [e for e in entries[1:] if e[0] == key]
         self._transmit(now, sender, buffer, frame, same_id)
 

@@ -157,7 +157,7 @@ class PIC18F8680(SFRNames):
                    for address in addresses if address not in self.time_varying and address not in self.read_side_effects]
         current = self._polled_version == version
         return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, entries,
-                         [site for site in self._polled_sites if isinstance(site[1], int)] if current else [])
+                         [(a, site) for a, site in self._polled_sites if isinstance(site, int)] if current else [])
 
     def write(self, address: int, value: int) -> None:
         process = self.process

@@ -5,10 +5,11 @@ firmware library, which runs in the grader's sandbox without the simulator.
 """
 from __future__ import annotations
 
+import abc
 import sys
 from collections.abc import Callable
 from contextvars import ContextVar
-from types import CodeType
+from types import CodeType, FrameType
 from typing import Any, Protocol
 
 from appsim.chip.ecan import registers as ecan_registers
@@ -77,12 +78,14 @@ BITFIELDS: Bitfields = (ecan_registers.BITFIELDS | ADC_BITFIELDS | TIMER1_BITFIE
                         | INTERRUPT_BITFIELDS | PORTJ_BITFIELDS)
 
 
-class SFRNames:
+class SFRNames(abc.ABC):
     """Registers by their data sheet names, on top of `read` and `write` by address."""
 
     sfr_addresses: dict[str, int]
 
+    @abc.abstractmethod
     def read(self, address: int, site: object = None) -> int: ...
+    @abc.abstractmethod
     def write(self, address: int, value: int) -> None: ...
 
     def address_of(self, name: str) -> int:
@@ -155,7 +158,7 @@ def firmware_entry(function: Callable[..., object]) -> None:
 def firmware_location() -> tuple[tuple[int, int], ...]:
     """Where in the firmware (outside this package) the current register access comes from: its call stack up to its
     main(), as (id of the code object, instruction offset) of each firmware frame. A polling loop reads from one place."""
-    frame = sys._getframe(2)
+    frame: FrameType | None = sys._getframe(2)
     location = []
     kinds = _KINDS
     while frame is not None:

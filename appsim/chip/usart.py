@@ -4,6 +4,7 @@ Bytes leave by the TX pin to the serial end the board wires it to, and arrive fr
 """
 from __future__ import annotations
 
+import functools
 from collections import deque
 from collections.abc import Callable
 from typing import NamedTuple, TYPE_CHECKING
@@ -79,7 +80,7 @@ class SerialEnd:
         sim = self.usart.mcu.sim
         start = max(sim.time(), self._line_free_ps)
         for byte in data:
-            sim.call_at(start, lambda byte=byte: self.usart.frame_starts(self, byte))
+            sim.call_at(start, functools.partial(self.usart.frame_starts, self, byte))
             start += self.frame_ps()
         self._line_free_ps = start
 

@@ -27,6 +27,9 @@ class _SFRs:
 class _Bits:
     """One register's bits and fields, read and written like C18's `RXB0CONbits.RXFUL = 0` (read-modify-write)."""
 
+    _register: str
+    _fields: dict[str, tuple[int, int]]
+
     def __init__(self, register: str, fields: dict[str, tuple[int, int]]):
         object.__setattr__(self, "_register", register)
         object.__setattr__(self, "_fields", fields)

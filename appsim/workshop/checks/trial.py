@@ -226,6 +226,8 @@ class Trial:
                                           "so main() must loop forever (`while True:` around the work, as "
                                           "`while(1)` in EX1.C's main())."))
         for board in self.bus.boards():
+            if not isinstance(board, PIC18F8680):
+                continue
             other = board.process
             if board is not self.board.mcu and other is not None and other.failure is not None:
                 raise RuntimeError(f"the classroom's own firmware on {board.name} crashed:\n{other.failure_text}")
