@@ -49,7 +49,14 @@ def __getattr__(name: str) -> Path:
     if name not in _FILES:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     package, file = _FILES[name]
-    path = globals()[name] = Path(str(resources.files(package))) / file
+    try:
+        folder = Path(str(resources.files(package)))
+    except ModuleNotFoundError:
+        # A source checkout run as python -m appsim without pip install -e: the folders beside the package.
+        folder = Path(__file__).resolve().parents[2] / package.rpartition(".")[2]
+        if not folder.is_dir():
+            raise
+    path = globals()[name] = folder / file
     return path
 
 
