@@ -2,8 +2,30 @@
 check accepts what each of them allows, and says why when it refuses."""
 from __future__ import annotations
 
+import random
+
 import pytest
 
+from appsim.chip.ecan.acceptance import id_pattern, passing_ids
+from appsim.firmware import (
+    CAN_CONFIG_STD_MSG,
+    CAN_CONFIG_VALID_STD_MSG,
+    CAN_FILTER_B1_F1,
+    CAN_FILTER_B1_F2,
+    CAN_MASK_B1,
+    CAN_OP_MODE_CONFIG,
+    CAN_OP_MODE_LOOP,
+    CAN_TX_PRIORITY_0,
+    CAN_TX_STD_FRAME,
+    CANInitialize,
+    CANIsRxReady,
+    CANReceiveMessage,
+    CANSendMessage,
+    CANSetFilter,
+    CANSetMask,
+    CANSetOperationMode,
+    Delay1KTCYx,
+)
 from appsim.workshop.checks import check
 from appsim.workshop.course import solution
 
@@ -25,3 +47,45 @@ def test_an_ex5_request_may_have_the_workshops_dlc_0_or_the_standards_5(tmp_path
     else:
         for words in (f"RTR DLC {dlc}", "The workshop sends DataLen 0", "CAN 2.0 advises", "5 here", "bit error"):
             assert words in requests.message, requests.message
+
+
+# ---------------------------------------------------------------- the lessons' tools compute what the kit does
+
+@pytest.mark.parametrize("mask, filter_", [(0x7FF, 0x088), (0x7F0, 0x120), (0x0FF, 0x100), (0x000, 0x5A5),
+                                           (0x70F, 0x100)])
+def test_the_mask_filter_table_lists_exactly_the_ids_the_simulated_ecan_takes(world, mask, filter_):
+    """`passing_ids`, the notebooks' truth-table tool, against a board in Loopback mode sending candidate IDs."""
+    passing = set(passing_ids(mask, filter_))
+    candidates = sorted(set(random.Random(mask ^ filter_).sample(range(0x800), 40)) | set(list(passing)[:24]))
+
+    def main():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_VALID_STD_MSG)
+        CANSetOperationMode(CAN_OP_MODE_CONFIG)
+        CANSetMask(CAN_MASK_B1, mask, CAN_CONFIG_STD_MSG)
+        CANSetFilter(CAN_FILTER_B1_F1, filter_, CAN_CONFIG_STD_MSG)
+        CANSetFilter(CAN_FILTER_B1_F2, filter_, CAN_CONFIG_STD_MSG)
+        CANSetOperationMode(CAN_OP_MODE_LOOP)
+        for can_id in candidates:
+            CANSendMessage(can_id, [], 0, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME)
+            Delay1KTCYx(10)
+            while CANIsRxReady():
+                CANReceiveMessage()
+        while True:
+            Delay1KTCYx(10)
+
+    world.node("board", main)
+    world.run(0.02 + 0.001 * len(candidates))
+    into_rxb0 = {e.frame.can_id for e in world.bus.loopback_trace if e.received[0][1].startswith("RXB0")}
+    assert len(world.bus.loopback_trace) == len(candidates)
+    assert into_rxb0 == passing & set(candidates)
+    assert id_pattern(mask, filter_).replace(" ", "").count("x") == 11 - bin(mask).count("1")
+
+
+def test_the_truth_table_rows_of_the_data_sheet():
+    """DS39500 section 5.3 / workshop section 2.7: mask bit 0 accepts, mask bit 1 accepts only equal bits."""
+    for mask_bit, filter_bit, id_bit, accepts in [(0, 0, 0, True), (0, 1, 1, True), (0, 0, 1, True),
+                                                  (1, 0, 0, True), (1, 0, 1, False), (1, 1, 0, False),
+                                                  (1, 1, 1, True)]:
+        assert (id_bit in passing_ids(mask_bit, filter_bit)) is accepts
+    assert id_pattern(0x7F0, 0x120) == "001 0010 xxxx"
+    assert passing_ids(0x0FF, 0x100)[:3] == [0x000, 0x100, 0x200], "a 0x0FF mask aliases 0x100 with 0x000, 0x200"
