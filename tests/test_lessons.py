@@ -4,8 +4,16 @@ from __future__ import annotations
 
 import random
 
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
 import pytest
 
+from appsim.can import physical
+from appsim.can.bits import encode
+from appsim.can.frame import CanFrame
 from appsim.chip.ecan.acceptance import id_pattern, passing_ids
 from appsim.firmware import (
     CAN_CONFIG_STD_MSG,
@@ -26,6 +34,7 @@ from appsim.firmware import (
     CANSetOperationMode,
     Delay1KTCYx,
 )
+from appsim.workshop import plots
 from appsim.workshop.checks import check
 from appsim.workshop.course import solution
 
@@ -89,3 +98,19 @@ def test_the_truth_table_rows_of_the_data_sheet():
         assert (id_bit in passing_ids(mask_bit, filter_bit)) is accepts
     assert id_pattern(0x7F0, 0x120) == "001 0010 xxxx"
     assert passing_ids(0x0FF, 0x100)[:3] == [0x000, 0x100, 0x200], "a 0x0FF mask aliases 0x100 with 0x000, 0x200"
+
+
+def test_the_physical_layer_numbers_are_the_sources_and_the_picture_draws_them():
+    assert [physical.differential_volts(level) for level in (physical.DOMINANT, physical.RECESSIVE)] == [2.0, 0.0]
+    assert physical.RECESSIVE_BELOW_VOLTS < physical.DOMINANT_ABOVE_VOLTS < physical.WORKSHOP_DOMINANT_ABOVE_VOLTS
+    assert physical.bus_resistance_ohms() == 60
+    # the workshop's approximation against its own tables: 48 m at 1 Mbit/s (the tables: 40 m)
+    assert round(physical.workshop_max_bus_length_metres(1_000_000)) == 48
+    levels = encode(CanFrame(0x100, bytes([1, 2, 3, 1, 0x2C])))[:20]
+    figure = plots.bus_levels(levels)
+    wires, difference, bus = figure.axes
+    canh, canl = wires.lines[:2]
+    assert [canh.get_ydata()[i] - canl.get_ydata()[i] for i in range(20)] == [2.0 * (1 - level) for level in levels]
+    assert len([p for p in bus.patches if p.get_gid() == "terminator"]) == 2
+    assert "60 Ω" in bus.get_title()
+    plt.close(figure)
