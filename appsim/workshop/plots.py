@@ -211,7 +211,7 @@ def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure
     ax.set_ylim(-0.4, 1.5)
     ax.set_xticks(range(timing.tq_per_bit + 1))
     ax.set_yticks([])
-    ax.set_xlabel(f"time quanta (1 TQ = 2 x BRP {timing.brp} / Fosc = {tq_us:g} µs)")
+    ax.set_xlabel(f"time quanta (1 TQ = 2 x (BRP<5:0> + 1) / Fosc = 2 x {timing.brp} / Fosc = {tq_us:g} µs)")
     ax.set_title(f"one bit = {timing.tq_per_bit} TQ = {timing.tq_per_bit * tq_us:g} µs: "
                  f"{float(timing.bit_rate(fosc)) / 1000:g} kbit/s")
     return _figure(ax)
