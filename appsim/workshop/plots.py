@@ -123,9 +123,9 @@ def arbitration(frames: Mapping[str, CanFrame], ax: Axes | None = None) -> Figur
     ax.set_xlim(0, length)
     ax.set_xlabel("bit from SOF (SOF, identifier MSB first, RTR; extended: SRR, IDE, 18 more identifier bits, RTR)")
     same_id = any(frames[name].base_id == frames[winner].base_id for name in lost_at)
-    why = ("same identifier: the RTR bit (data beats remote) or IDE (standard beats extended) decides" if same_id
+    why = ("same identifier: RTR (data beats remote) or IDE (standard beats extended) decides" if same_id
            else "the lowest identifier wins")
-    ax.set_title(f"{winner} wins arbitration: at the first bit that differs it sends dominant 0; {why}")
+    ax.set_title(f"{winner} wins arbitration: at the first bit that differs it sends dominant 0\n{why}")
     return _figure(ax)
 
 
