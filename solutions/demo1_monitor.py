@@ -10,8 +10,8 @@ A line (the kit's format, docs/monitor-format.md):
        12.345678  0x088  STD  DATA  DLC 5  01 02 03 02 9A
 seconds since reset by Timer1 (Fosc/4, 1:8, overflows counted here), identifier, STD/XTD, DATA/RTR.
 
-A line is about 50 bytes, 26 ms at 19200 baud, so a busy bus outruns the USART. Frames wait in a
-queue in RAM; when it is full they are counted and the monitor says how many it lost:
+A line for a 5-byte frame is 55 bytes: 29 ms at 19200 baud (8N1, 10 bits a byte), while the frame
+held the bus for at most 0.84 ms, so a busy bus outruns the USART. Frames wait in a queue in RAM; when it is full they are counted and the monitor says how many it lost:
     # lost 7 frames (queue full: the USART at 19200 baud is slower than the bus)
 
 DSW2 switch 1 ON at reset (RJ0 reads 0): the board is an SLCAN (Lawicel) adapter instead, so a PC
@@ -34,7 +34,8 @@ LOST = 0x100                  # among them: here the USART lost bytes (OERR)
 OUTPUT_BYTES = 64             # SLCAN answers and frame lines waiting for the USART
 LONGEST_ANSWER = len(slcan.VERSION) + len(slcan.OK)     # V1013 CR
 
-# SLCAN Sn -> CANSetBaudRate(SJW, BRP, PHSEG1, PHSEG2, PROPSEG) at Fosc = 40 MHz (TQ = 2 * BRP / Fosc).
+# SLCAN Sn -> CANSetBaudRate(SJW, BRP, PHSEG1, PHSEG2, PROPSEG) at Fosc = 40 MHz, BRP as AN738's divider:
+# TQ = 2 * BRP / Fosc = 2 * (BRP<5:0> + 1) / Fosc.
 # S0 (10 kbit/s) needs more than 64 x 25 TQ of 50 ns: the PIC at 40 MHz cannot go that slow.
 SLCAN_TIMING = {
     1: (4, 50, 7, 4, 8),      # 20 kbit/s: 20 TQ of 2.5 us
@@ -47,7 +48,7 @@ SLCAN_TIMING = {
     8: (4, 1, 7, 4, 8),       # 1 Mbit/s: 20 TQ of 50 ns
 }
 
-# SLCAN status flags (F command)
+# SLCAN status flags (F command), Lawicel's bits and names; bit 7 is Lawicel's 'bus error': set here while bus-off
 STATUS_RX_QUEUE_FULL, STATUS_TX_BUSY, STATUS_ERROR_WARNING = 0x01, 0x02, 0x04
 STATUS_OVERRUN, STATUS_ERROR_PASSIVE, STATUS_BUS_ERROR = 0x08, 0x20, 0x80
 

@@ -323,7 +323,7 @@ def format_table(solutions: Iterable[Solution]) -> str:
 
 @dataclass(frozen=True, slots=True)
 class SeedRecipe:
-    """The Workshop 202 recipe's numbers as the seed computes them, what is wrong with them, and a fix.
+    """The Workshop 202 recipe's numbers as the workshop computes them, what is wrong with them, and a fix.
 
     `brp`, `prseg`, `seg1ph`, `seg2ph` and `sjw` are the recipe's values (BRP as the divider, segments in TQ);
     they may not be programmable, which is why they are plain ints. `notes` explain every inconsistency;
@@ -343,7 +343,7 @@ class SeedRecipe:
 
     @property
     def brp_register(self) -> int:
-        """The register value BRP<5:0> = brp - 1, the seed's "BRP = ((Fosc/N)/(2B)) - 1"."""
+        """The register value BRP<5:0> = brp - 1, the workshop recipe's "BRP = ((Fosc/N)/(2B)) - 1"."""
         return self.brp - 1
 
     @property
@@ -359,7 +359,7 @@ def seed_recipe(bit_rate: int | float | Fraction, fosc: int) -> SeedRecipe:
     """Run the Workshop 202 recipe (workshop extract §2.5) and report where it goes wrong.
 
     N = the largest of 8..25 for which (Fosc / N) / (2 * B) is a whole divider 1..64; BRP<5:0> = that - 1;
-    Phase Segment 2 = SJW = N * 0.30 rounded to the nearest TQ (halves up), as the seed's worked example
+    Phase Segment 2 = SJW = N * 0.30 rounded to the nearest TQ (halves up), as the workshop's worked example
     does (16 * 0.30 = 4.8 -> 5; the recipe text's "integer operation" would truncate, and a note says so when
     that differs); Prop = 2; Phase Segment 1 = N - 1 - 2 - Phase Segment 2.
     Raises `BitTimingError` if no N gives a whole divider.
@@ -394,7 +394,7 @@ def seed_recipe(bit_rate: int | float | Fraction, fosc: int) -> SeedRecipe:
         )
         notes.append(
             f"Phase Segment 2 = SJW = N x 0.30 = {n} x 0.30 = {float(exact_ps2):g} TQ is not a whole number: the "
-            f"recipe's \"integer operation\" truncates it to {truncated} TQ{consequence}, while the seed's worked "
+            f"recipe's \"integer operation\" truncates it to {truncated} TQ{consequence}, while the workshop's worked "
             f"example rounds it to {ps2} TQ; this kit follows the worked example"
         )
     broken = _range_problems(brp=brp, sjw=ps2, prseg=SEED_PROP_SEG_TQ, seg1ph=ps1, seg2ph=ps2)

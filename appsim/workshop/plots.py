@@ -9,6 +9,7 @@ from itertools import groupby
 from typing import TYPE_CHECKING, Any, cast
 
 from appsim.bus import monitor
+from appsim.can import physical
 from appsim.can.bits import WireBit, encode_annotated
 from appsim.can.bittiming import SYNC_SEG_TQ, BitTiming
 from appsim.bus.wire import BusEvent
@@ -120,9 +121,72 @@ def arbitration(frames: Mapping[str, CanFrame], ax: Axes | None = None) -> Figur
     ax.set_yticks([2 * (len(rows) - row) + 0.5 for row in range(len(rows))] + [0.5], labels)
     ax.set_xticks(range(length + 1))
     ax.set_xlim(0, length)
-    ax.set_xlabel("bit from SOF (SOF, identifier MSB first, RTR)")
-    ax.set_title(f"{winner} wins arbitration: at the first bit that differs it sends dominant 0; lowest ID wins")
+    ax.set_xlabel("bit from SOF (SOF, identifier MSB first, RTR; extended: SRR, IDE, 18 more identifier bits, RTR)")
+    same_id = any(frames[name].base_id == frames[winner].base_id for name in lost_at)
+    why = ("same identifier: RTR (data beats remote) or IDE (standard beats extended) decides" if same_id
+           else "the lowest identifier wins")
+    ax.set_title(f"{winner} wins arbitration: at the first bit that differs it sends dominant 0\n{why}")
     return _figure(ax)
+
+
+def bus_levels(levels: Sequence[int], axes: Sequence[Axes] | None = None) -> Figure:
+    """The two wires under a run of bits: CANH and CANL, their difference, and what a receiver reads.
+
+    Nominal ISO 11898-2 levels (`appsim.can.physical`): recessive, both wires at 2.5 V (nobody drives); dominant,
+    CANH 3.5 V and CANL 1.5 V. Below it the bus as the termination sees it: 120 ohm at each end, nodes on stubs.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    if axes is None:
+        figure, axes = plt.subplots(3, 1, figsize=(12, 7), height_ratios=(2, 1.4, 1.3))
+    wires, difference, bus = axes
+    canh = [physical.CANH_CANL_VOLTS[level][0] for level in levels]
+    canl = [physical.CANH_CANL_VOLTS[level][1] for level in levels]
+    xs = range(len(levels) + 1)
+    wires.step(xs, canh + canh[-1:], where="post", color="tab:orange", linewidth=2, label="CANH")
+    wires.step(xs, canl + canl[-1:], where="post", color="tab:blue", linewidth=2, label="CANL")
+    for index, level in enumerate(levels):
+        wires.text(index + 0.5, 3.8, "D" if level == physical.DOMINANT else "R", ha="center", fontsize=8)
+    wires.set_ylim(1, 4.1)
+    wires.set_ylabel("volts")
+    wires.set_xlim(0, len(levels))
+    wires.legend(loc="lower right", fontsize=8)
+    wires.set_title("dominant (D, logic 0): CANH pulled up, CANL down; recessive (R, logic 1): nobody drives, "
+                    "both rest at 2.5 V")
+    vdiff = [physical.differential_volts(level) for level in levels]
+    difference.step(xs, vdiff + vdiff[-1:], where="post", color="black", linewidth=2)
+    difference.axhspan(physical.DOMINANT_ABOVE_VOLTS, 3, color="#f4cccc", zorder=0)
+    difference.axhspan(-0.5, physical.RECESSIVE_BELOW_VOLTS, color="#d9ead3", zorder=0)
+    difference.axhline(physical.WORKSHOP_DOMINANT_ABOVE_VOLTS, color="grey", linestyle="--", linewidth=1)
+    difference.set_title(f"a receiver reads dominant above {physical.DOMINANT_ABOVE_VOLTS} V (red; ISO 11898-2, "
+                         f"the workshop's transceiver slide says {physical.WORKSHOP_DOMINANT_ABOVE_VOLTS} V, dashed), "
+                         f"recessive below {physical.RECESSIVE_BELOW_VOLTS} V (green)", fontsize=10)
+    difference.set_xlim(0, len(levels))
+    for ax in (wires, difference):
+        ax.set_xticks(range(len(levels) + 1))
+    difference.set_ylim(-0.5, 2.6)
+    difference.set_ylabel("CANH - CANL (V)")
+    difference.set_xlabel("bit")
+    for y, name, colour in ((1, "CANH", "tab:orange"), (0, "CANL", "tab:blue")):
+        bus.plot([0.5, 9.5], [y, y], color=colour, linewidth=2)
+        bus.text(0.4, y, name, ha="right", va="center", fontsize=9)
+    for x in (0.8, 9.2):
+        bus.add_patch(Rectangle((x - 0.12, 0.2), 0.24, 0.6, facecolor="white", edgecolor="black", gid="terminator"))
+        bus.text(x + 0.2, 0.5, f"{physical.TERMINATION_OHMS} Ω", va="center", fontsize=9)
+        bus.plot([x, x], [0, 0.2], [x, x], [0.8, 1], color="black", linewidth=1)
+    for x, name in ((3, "node"), (5, "node"), (7, "node")):
+        bus.plot([x - 0.1, x - 0.1], [1, 1.6], [x + 0.1, x + 0.1], [0, 1.6], color="grey", linewidth=1)
+        bus.add_patch(Rectangle((x - 0.6, 1.6), 1.2, 0.5, facecolor="#cfe2f3", edgecolor="black", gid="node"))
+        bus.text(x, 1.85, f"{name}\n(transceiver)", ha="center", va="center", fontsize=8)
+    bus.set_xlim(0, 10)
+    bus.set_ylim(-0.3, 2.3)
+    bus.axis("off")
+    bus.set_title(f"one pair of wires, {physical.TERMINATION_OHMS} Ω at each end: "
+                  f"{float(physical.bus_resistance_ohms()):g} Ω between CANH and CANL", fontsize=10)
+    figure = _figure(wires)
+    figure.tight_layout()
+    return figure
 
 
 def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure:
@@ -147,7 +211,7 @@ def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure
     ax.set_ylim(-0.4, 1.5)
     ax.set_xticks(range(timing.tq_per_bit + 1))
     ax.set_yticks([])
-    ax.set_xlabel(f"time quanta (1 TQ = 2 x BRP {timing.brp} / Fosc = {tq_us:g} µs)")
+    ax.set_xlabel(f"time quanta (1 TQ = 2 x (BRP<5:0> + 1) / Fosc = 2 x {timing.brp} / Fosc = {tq_us:g} µs)")
     ax.set_title(f"one bit = {timing.tq_per_bit} TQ = {timing.tq_per_bit * tq_us:g} µs: "
                  f"{float(timing.bit_rate(fosc)) / 1000:g} kbit/s")
     return _figure(ax)

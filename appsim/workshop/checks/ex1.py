@@ -66,7 +66,8 @@ def _receives(trial: Trial, looped, on_bus) -> CheckResult:
                                         "goes through the masks and filters: "
                                         f"{trial.acceptance('RXB0')}, and MESSAGE_ID1 = {hex_id(trial.own_id)} "
                                         "matches no filter in the bits the mask compares. Set RX_Filter0 "
-                                        "to MESSAGE_ID1, or relax RX_Mask0 (see the TODO).")
+                                        "to MESSAGE_ID1 (or MESSAGE_ID1 to RX_Filter0), or relax RX_Mask0, or "
+                                        "receive everything with CAN_CONFIG_ALL_MSG (see the TODO).")
 
 
 def _lcd(trial: Trial, looped) -> CheckResult:
