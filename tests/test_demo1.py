@@ -25,7 +25,7 @@ CLASSROOM = (4, 10, 8, 4, 3)
 # The documented line format (docs/monitor-format.md).
 FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD)  (DATA|RTR )  DLC (\d+)"
                         r"((?:  [0-9A-F]{2}(?: [0-9A-F]{2})*)?)$")
-LOST_LINE = re.compile(r"^# lost (\d+) frames? \(queue full: the USART at 19200 baud is slower than the bus\)$")
+LOST_LINE = re.compile(r"^# lost (\d+) frames? \(queue full\)$")
 
 
 def sender(frames, *, start_ms: float, gap_ms: float):
