@@ -171,9 +171,9 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--seed", type=int, default=202,
                          help="seed of the stations' potentiometer values (default 202): same seed, same run")
     for sub in (board, classroom, monitor):
-        sub.add_argument("--log", type=Path,
-                         help="write every frame as it goes: .log (candump), .asc, .blf or .csv; Ctrl-C or a "
-                              "crash leaves it readable to its last frame")
+        sub.add_argument("--log", type=Path, action="append", metavar="FILE",
+                         help="write every frame as it goes: .log (candump), .asc, .blf or .csv (give --log again "
+                              "for more formats); Ctrl-C or a crash leaves it readable to its last frame")
         sub.add_argument("--interface", help="python-can interface to join: socketcan, virtual, udp_multicast, "
                                              "pcan, kvaser, slcan ... (default: the simulated bus alone)")
         sub.add_argument("--channel", help="python-can channel, e.g. vcan0, can0, /dev/ttyACM0")

@@ -136,8 +136,8 @@ Command = Callable[[argparse.Namespace], int]
 
 
 def logs_asked(args: argparse.Namespace) -> list[Path]:
-    """The log `--log` names, if any."""
-    return [args.log] if args.log else []
+    """The logs `--log` names, if any."""
+    return list(args.log or [])
 
 
 def session_command(logs: Callable[[argparse.Namespace], list[Path]] = logs_asked) -> Callable[[Body], Command]:

@@ -23,14 +23,21 @@ LOG_FORMATS: dict[str, type[can.io.generic.FileIOMessageWriter]] = {
     ".log": can.CanutilsLogWriter, ".asc": can.ASCWriter, ".blf": can.BLFWriter, ".csv": can.CSVWriter}
 
 
+def stamp(event: BusEvent) -> float:
+    """When the trace and every log say an event happened: its end (the end of EOF, or of an error frame's delimiter),
+    in seconds since the boards' reset. A receiver has a frame then, and stamps it then: candump shows the kernel's
+    time of reception, CANKing the interface's (docs/traces.md)."""
+    return event.end_ps / PS_PER_SECOND
+
+
 def format_event(event: BusEvent) -> str:
-    """One line per frame: time of SOF, sender, ID, STD/EXT and RTR, DLC, data, who ACKed (or the error)."""
+    """One line per frame: its time (`stamp`), sender, ID, STD/EXT and RTR, DLC, data, who ACKed (or the error)."""
     frame = event.frame
     ident = f"{frame.can_id:08X}" if frame.extended else f"{frame.can_id:03X}"
     kind = ("EXT" if frame.extended else "STD") + (" RTR" if frame.remote else "")
     data = "" if frame.remote else frame.data.hex(" ").upper()
     tail = f"** {event.error}" if event.error else (",".join(event.acked_by) or "-")
-    return (f"{event.start_ps / PS_PER_SECOND:11.6f}  {event.sender:<9} {ident:>8}  {kind:<8} "
+    return (f"{stamp(event):11.6f}  {event.sender:<9} {ident:>8}  {kind:<8} "
             f"{frame.dlc:>3}  {data:<23}  {tail}")
 
 
@@ -83,11 +90,11 @@ class LiveTrace:
 
 
 def to_message(event: BusEvent, channel: str | int) -> can.Message:
-    """The frame as python-can logs it, timestamped at its end of frame (when receivers have it)."""
+    """The frame as python-can logs it, at its `stamp`."""
     frame = event.frame
     if event.error:
-        return can.Message(timestamp=event.end_ps / PS_PER_SECOND, is_error_frame=True, channel=channel)
-    return can.Message(timestamp=event.end_ps / PS_PER_SECOND, arbitration_id=frame.can_id,
+        return can.Message(timestamp=stamp(event), is_error_frame=True, channel=channel)
+    return can.Message(timestamp=stamp(event), arbitration_id=frame.can_id,
                        is_extended_id=frame.extended, is_remote_frame=frame.remote, dlc=frame.dlc,
                        data=frame.data, channel=channel)
 
@@ -176,14 +183,19 @@ class TraceLog:
             self._file = _WholeRecords(self.path)
         except OSError as error:
             raise cannot_write(self.path, error) from None
-        self._channel: str | int = channel if suffix == ".log" else 1
+        self._channel: str | int = channel if suffix == ".log" else 0    # python-can's first; Vector's channel 1
         self._writer: can.io.generic.FileIOMessageWriter
+        # python-can counts an .asc's and a .blf's times from their first frame: these count from reset (time 0), as
+        # the trace, the .log and the .csv do, so every one gives a frame the same time.
         if suffix == ".blf":            # one container per frame: stored, as there is nothing to compress in one
             self._writer = can.BLFWriter(self._file, compression_level=0)
+            self._writer.start_timestamp = 0.0
         else:
             text = io.TextIOWrapper(self._file, encoding="utf-8", write_through=True)
             writer = LOG_FORMATS[suffix]
             self._writer = writer(text, channel=channel) if suffix == ".log" else writer(text)
+            if isinstance(self._writer, can.ASCWriter):     # the measurement starts at reset, every node error active
+                self._writer.log_event("CAN 1 Status:chip status error active", 0.0)
         self._closed = False
         self._commit()                  # the format's header: a full disk shows now, before the run
 

@@ -42,7 +42,7 @@ class BusEvent:
         return not self.error
 
     def __str__(self) -> str:
-        time = f"{self.start_ps / PS_PER_SECOND:12.6f}"
+        time = f"{self.end_ps / PS_PER_SECOND:12.6f}"       # when receivers have it, as the trace and logs say
         if self.error:
             return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}"
         acks = ",".join(self.acked_by) or "-"
