@@ -7,6 +7,7 @@ import errno
 import io
 import os
 from collections.abc import Iterable, Sequence
+from contextlib import suppress
 from pathlib import Path
 
 import can
@@ -21,6 +22,7 @@ HEADER = f"{'time (s)':>11}  {'sender':<9} {'ID':>8}  {'type':<8} DLC  {'data':<
 # (not .trc: python-can's TRC writer leaves remote frames out).
 LOG_FORMATS: dict[str, type[can.io.generic.FileIOMessageWriter]] = {
     ".log": can.CanutilsLogWriter, ".asc": can.ASCWriter, ".blf": can.BLFWriter, ".csv": can.CSVWriter}
+LOG_KINDS = {".log": "candump -L format", ".asc": "Vector ASC", ".blf": "Vector BLF", ".csv": "python-can CSV"}
 
 
 def stamp(event: BusEvent) -> float:
@@ -99,7 +101,7 @@ def to_message(event: BusEvent, channel: str | int) -> can.Message:
                        data=frame.data, channel=channel)
 
 
-class _WholeRecords(io.RawIOBase):
+class WholeRecords(io.RawIOBase):
     """The file under a python-can writer. What the writer writes waits here until `commit()` gives it to the operating
     system in one go, so the file grows by whole records only; a write that fails (a full disk) cuts the file back to
     its last whole record."""
@@ -166,23 +168,72 @@ def cannot_write(path: Path, error: OSError) -> OutputError:
     return OutputError(f"cannot write {path}: {reason}")
 
 
-class TraceLog:
-    """A CAN log in the format its file's suffix names (`LOG_FORMATS`), written by python-can's writer as the bus
-    carries each event, each record handed to the operating system whole as it happens: a run cut short (Ctrl-C, a
-    crash, a kill) leaves a log that `can.LogReader` reads to its last frame, and a full disk ends the log at its last
-    whole record with an `OutputError` that says so. Opening it is the check that the path can be written."""
+class EventFile:
+    """A file the bus's events go to as it carries them, each record handed to the operating system whole as it
+    happens: a run cut short (Ctrl-C, a crash, a kill) leaves a file readable to its last event, and a full disk ends it
+    at its last whole record with an `OutputError` that says so. Opening it is the check that the path can be written.
+    A format says what `kind` of file it is, how it `_record`s an event and how it `_finish`es."""
 
-    def __init__(self, path: str | Path, *, channel: str = "vcan0"):
+    kind = ""
+
+    def __init__(self, path: str | Path):
         self.path = Path(path)
-        self.written = 0                 # events in the log
-        suffix = self.path.suffix.lower()
-        if suffix not in LOG_FORMATS:
-            raise OutputError(f"cannot write a CAN log named {self.path.name}: use .log (candump), .asc (Vector), "
-                              ".blf (Vector binary) or .csv")
+        self.written = 0                 # events in the file
+        self._closed = False
         try:
-            self._file = _WholeRecords(self.path)
+            self._file = WholeRecords(self.path)
         except OSError as error:
             raise cannot_write(self.path, error) from None
+
+    def _record(self, event: BusEvent) -> None:
+        raise NotImplementedError
+
+    def _finish(self) -> None:
+        raise NotImplementedError
+
+    def write(self, event: BusEvent) -> None:
+        """One more event in the file, given to the operating system before this returns; Ctrl-C waits for it."""
+        with ctrl_c_waits():
+            self._record(event)
+            self._commit()
+            self.written += 1
+
+    def _commit(self) -> None:
+        try:
+            self._file.commit()
+        except OSError as error:
+            self.close()
+            holds = f". The log holds the run's first {self.written} frames, each one whole" if self.written else ""
+            raise OutputError(f"{cannot_write(self.path, error)}{holds}") from None
+
+    def close(self) -> None:
+        """End the file as its format ends: after a failed write, as far as it goes."""
+        if self._closed:
+            return
+        self._closed = True
+        with suppress(OSError):         # after a failed write: the file was cut back to its last whole record
+            self._finish()
+        with suppress(OSError):
+            self._file.close()
+
+    def __enter__(self) -> EventFile:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class TraceLog(EventFile):
+    """A CAN log in the format its file's suffix names (`LOG_FORMATS`), written by python-can's writer as the bus
+    carries each event: `can.LogReader` reads it back to its last frame, at the times the trace shows (`stamp`)."""
+
+    def __init__(self, path: str | Path, *, channel: str = "vcan0"):
+        suffix = Path(path).suffix.lower()
+        if suffix not in LOG_FORMATS:
+            raise OutputError(f"cannot write a CAN log named {Path(path).name}: use .log (candump), .asc (Vector), "
+                              ".blf (Vector binary) or .csv")
+        super().__init__(path)
+        self.kind = LOG_KINDS[suffix]
         self._channel: str | int = channel if suffix == ".log" else 0    # python-can's first; Vector's channel 1
         self._writer: can.io.generic.FileIOMessageWriter
         # python-can counts an .asc's and a .blf's times from their first frame: these count from reset (time 0), as
@@ -196,41 +247,16 @@ class TraceLog:
             self._writer = writer(text, channel=channel) if suffix == ".log" else writer(text)
             if isinstance(self._writer, can.ASCWriter):     # the measurement starts at reset, every node error active
                 self._writer.log_event("CAN 1 Status:chip status error active", 0.0)
-        self._closed = False
         self._commit()                  # the format's header: a full disk shows now, before the run
 
-    def write(self, event: BusEvent) -> None:
-        """One more event in the log, given to the operating system before this returns; Ctrl-C waits for it."""
-        with ctrl_c_waits():
-            self._writer.on_message_received(to_message(event, self._channel))
-            if isinstance(self._writer, can.BLFWriter):
-                self._writer._flush()       # the writer's own buffer would hold 128 kB of frames back
-            self._commit()
-            self.written += 1
+    def _record(self, event: BusEvent) -> None:
+        self._writer.on_message_received(to_message(event, self._channel))
+        if isinstance(self._writer, can.BLFWriter):
+            self._writer._flush()       # the writer's own buffer would hold 128 kB of frames back
 
-    def _commit(self) -> None:
-        try:
-            self._file.commit()
-        except OSError as error:
-            self.close()
-            holds = f". The log holds the run's first {self.written} frames, each one whole" if self.written else ""
-            raise OutputError(f"{cannot_write(self.path, error)}{holds}") from None
-
-    def close(self) -> None:
-        """End the log as its format ends (ASC's last line, BLF's header): after a failed write, as far as it goes."""
-        if self._closed:
-            return
-        self._closed = True
-        try:
-            self._writer.stop()
-        except OSError:
-            pass                        # the file was cut back to its last whole record
-
-    def __enter__(self) -> TraceLog:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def _finish(self) -> None:
+        """ASC's last line, BLF's header."""
+        self._writer.stop()
 
 
 def write_log(events: Iterable[BusEvent], path: str | Path, *, channel: str = "vcan0") -> Path:
