@@ -20,8 +20,9 @@ def wire_levels(event: BusEvent, bit_ps: int) -> list[int]:
     where an error flag cut it, the flag (dominant, or an error-passive sender's recessive one) and its delimiter."""
     if event.ok:
         return acked_bits(event.frame)
-    flag = (event.end_ps - event.start_ps) // bit_ps - event.flag_at_bit - ERROR_DELIMITER_BITS
-    return [*encode(event.frame)[:event.flag_at_bit], *[0 if event.flag_dominant else 1] * flag, *[1] * ERROR_DELIMITER_BITS]
+    cut = event.flag_at_bit
+    flag = (event.end_ps - event.start_ps) // bit_ps - cut - ERROR_DELIMITER_BITS
+    return [*encode(event.frame)[:cut], *[0 if event.flag_dominant else 1] * flag, *[1] * ERROR_DELIMITER_BITS]
 
 
 class WaveformLog(EventFile):

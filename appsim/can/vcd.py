@@ -16,7 +16,7 @@ from appsim.can.frame import CanFrame
 __all__ = ["BUS_IDLE_BITS", "TIMESCALE", "FrameAt", "VcdWriter", "acked_bits", "tick_for", "write_vcd"]
 
 TIMESCALE = "1 ns"
-"""`write_vcd`'s time unit. Every PIC18 bit time (a whole number of 50 ns steps at 40 MHz) is a whole number of these."""
+"""`write_vcd`'s time unit: every PIC18 bit time (a whole number of 50 ns steps at 40 MHz) is a whole number of it."""
 
 BUS_IDLE_BITS = 11
 """Recessive bits a CAN node needs to see before it takes the bus as idle."""
