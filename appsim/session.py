@@ -91,12 +91,17 @@ class Session:
         for line in lines:
             print(line, file=self.out)
 
-    def print_trace(self, limit: int | None = TRACE_LINES_SHOWN) -> None:
+    def print_trace(self, limit: int | None = TRACE_LINES_SHOWN, *, more: str = "") -> None:
+        """The trace's new lines, the first `limit` of them; past the limit, how many more and where they are (in a
+        log, or `more`: how this command shows them)."""
         lines = self.trace.new_lines()
         print(HEADER, file=self.out)
         self._show(lines if limit is None else lines[:limit])
         if limit is not None and len(lines) > limit:
-            print(f"{'':>11}  ... {len(lines) - limit} more frames (see the trace log)", file=self.out)
+            logged = next((log.path for log in self.logs if isinstance(log, TraceLog)), None)
+            where = f"all of them are in {logged}" if logged else "--log trace.log keeps them"
+            print(f"{'':>11}  ... {len(lines) - limit} more frames ({where}{'; ' + more if more else ''})",
+                  file=self.out)
         print(summary(self.bus), file=self.out)
 
     def report_failures(self) -> None:
@@ -268,25 +273,26 @@ def cmd_board(args: argparse.Namespace, session: Session) -> None:
 def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
     out = session.out
     classroom = Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
+    station = args.station or 1
     if args.join:
         firmware = load_firmware(args.join)
-        expected = station_ids(args.station)["MESSAGE_ID1"]
+        expected = station_ids(station)["MESSAGE_ID1"]
         own = getattr(firmware, "MESSAGE_ID1", expected)
         if own != expected:
-            print(f"warning: {args.join} has MESSAGE_ID1 = 0x{own:03X} but station {args.station}'s is "
+            print(f"warning: {args.join} has MESSAGE_ID1 = 0x{own:03X} but station {station}'s is "
                   f"0x{expected:03X}. Two nodes sending one ID with different data destroy each other's "
                   "frames (bit errors): set MESSAGE_ID1 to your station's ID.", file=sys.stderr)
-        classroom.join(firmware, args.station)
-    who = f"; station{args.station} runs {args.join}" if args.join else ""
+        classroom.join(firmware, station)
+    who = f"; station{station} runs {args.join}" if args.join else ""
     print(f"Classroom at exercise {args.exercise}: the master and six stations running "
           f"solutions/ex{args.exercise}.py{who}.", file=out)
     session.run(args.seconds, live=True)
     if session.link is None:
-        session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN)
+        session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN, more="--full-trace prints them")
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
     for log in session.logs:
-        print(f"wrote {log.path} ({log.written} frames)", file=out)
+        print(f"wrote {log.path} ({log.kind}, {log.written} frames)", file=out)
 
 
 @session_command()
