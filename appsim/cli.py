@@ -217,6 +217,10 @@ def build_parser() -> argparse.ArgumentParser:
     for sub in (demo, classroom, monitor):
         sub.add_argument("--seed", type=_seed, default=202,
                          help="seed of the stations' potentiometer values (default 202): same seed, same run")
+    for sub in (demo, board, classroom, monitor):
+        sub.add_argument("--vcd", type=Path, metavar="FILE",
+                         help="write the CAN line's waveform as it goes, a VCD for PulseView or sigrok-cli's CAN "
+                              "decoder (docs/traces.md)")
     for sub in (board, classroom, monitor):
         sub.add_argument("--log", type=Path, action="append", metavar="FILE",
                          help="write every frame as it goes: .log (candump), .asc, .blf or .csv (give --log again "

@@ -15,8 +15,9 @@ import can
 from appsim.board.app023 import APP023
 from appsim.board.usbcdc import UsbCdc
 from appsim.bus.link import BusLink
-from appsim.bus.monitor import HEADER, LiveTrace, TraceLog, cannot_write, error_counters, summary
+from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, cannot_write, error_counters, summary
 from appsim.bus.realtime import WallClock
+from appsim.bus.waveform import WaveformLog
 from appsim.bus.wire import Bus
 from appsim.firmware.loader import constants, load_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
@@ -30,9 +31,9 @@ TRACE_LINES_SHOWN = 40
 class Session:
     """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time.
 
-    Its logs (`logs`) are opened first, so a path that cannot be written stops the command before anything runs
-    (`OutputError`); each gets every frame as the bus carries it. A session is closed (logs ended, link closed and its
-    report printed) when its `with` block ends."""
+    Its files (`logs`: the --log paths, then the --vcd waveform) are opened first, so a path that cannot be written
+    stops the command before anything runs (`OutputError`); each gets every event as the bus carries it. A session is
+    closed (files ended, link closed and its report printed) when its `with` block ends."""
 
     def __init__(self, args: argparse.Namespace, out: TextIO, *, logs: Sequence[Path] = ()):
         self.sim = Simulator()
@@ -40,13 +41,13 @@ class Session:
         self.out = out
         self.link: BusLink | None = None
         self.trace = LiveTrace(self.bus)
-        self.logs: list[TraceLog] = []
+        self.logs: list[EventFile] = []
         self.reported: set[str] = set()          # boards whose stop was reported
         try:
             for path in logs:
-                log = TraceLog(path)
-                self.logs.append(log)
-                self.bus.trace.listeners.append(log.write)
+                self._keep(TraceLog(path))
+            if getattr(args, "vcd", None):
+                self._keep(WaveformLog(args.vcd, self.bus))
             if getattr(args, "interface", None):
                 try:
                     self.link = BusLink(self.bus, interface=args.interface, channel=args.channel)
@@ -56,6 +57,10 @@ class Session:
         except BaseException:
             self.close()
             raise
+
+    def _keep(self, log: EventFile) -> None:
+        self.logs.append(log)
+        self.bus.trace.listeners.append(log.write)
 
     def run(self, seconds: float, *, live: bool, real_time: bool = False,
             pollers: tuple[Callable[[], None], ...] = ()) -> None:
@@ -103,6 +108,11 @@ class Session:
             print(f"{'':>11}  ... {len(lines) - limit} more frames ({where}{'; ' + more if more else ''})",
                   file=self.out)
         print(summary(self.bus), file=self.out)
+
+    def print_written(self) -> None:
+        """What each of the session's files holds, now that the run is over."""
+        for log in self.logs:
+            print(f"wrote {log.path} ({log.kind}, {log.written} frames)", file=self.out)
 
     def report_failures(self) -> None:
         """Say once, for each board whose firmware is no longer running, which file it ran and why it stopped, with
@@ -243,8 +253,9 @@ def cmd_demo(args: argparse.Namespace, session: Session) -> None:
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
     picture = save_lcd_picture(classroom.boards, args.out / "lcds.png")
-    candump, asc = (log.path for log in session.logs)
-    print(f"\nwrote {candump} (candump -L format), {asc} (Vector ASC) and {picture} (every LCD)", file=out)
+    print("", file=out)
+    session.print_written()
+    print(f"wrote {picture} (every LCD)", file=out)
 
 
 @session_command()
@@ -267,6 +278,7 @@ def cmd_board(args: argparse.Namespace, session: Session) -> None:
     if session.link is None:
         session.print_trace()
     print(board.glcd, file=out)
+    session.print_written()
 
 
 @session_command()
@@ -291,8 +303,7 @@ def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
         session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN, more="--full-trace prints them")
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
-    for log in session.logs:
-        print(f"wrote {log.path} ({log.kind}, {log.written} frames)", file=out)
+    session.print_written()
 
 
 @session_command()
@@ -316,3 +327,4 @@ def cmd_monitor(args: argparse.Namespace, session: Session) -> None:
               "Ctrl-C stops", file=out)
         session.run(args.seconds, live=False, real_time=True, pollers=(usb.poll,))
         print(f"{session.bus.trace.frames} frames on the bus\n{usb.report()}", file=out)
+        session.print_written()

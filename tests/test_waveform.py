@@ -2,17 +2,21 @@
 and sigrok-cli's CAN decoder reading back the frames a command ran (`appsim ... --vcd`)."""
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 
+import can
 import pytest
 
 from appsim.bus.waveform import WaveformLog, wire_levels, write_waveform
 from appsim.bus.wire import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
 from appsim.can.bits import encode, frame_bits
+from appsim.can.frame import CanFrame
 from appsim.errors import OutputError
 from appsim.firmware import *  # noqa: F403
 from test_bus_gotchas import normal_node
-from test_vcd import level_at, read_vcd
+from test_vcd import level_at, read_vcd, sigrok_cli, sigrok_decode  # noqa: F401 (sigrok_cli: a fixture)
 
 KIT = Path(__file__).resolve().parent.parent
 BIT_PS = 8_000_000                      # 125 kbit/s
@@ -64,3 +68,31 @@ def test_two_stations_with_one_id_are_cut_by_error_flags():
 def test_a_waveform_that_cannot_be_written_is_refused_when_opened(world, tmp_path):
     with pytest.raises(OutputError, match="there is no directory"):
         WaveformLog(tmp_path / "no" / "bus.vcd", world.bus)
+
+
+def test_appsim_vcd_is_decoded_by_sigrok_into_the_frames_of_the_log_at_their_times(sigrok_cli, tmp_path):
+    vcd, log = tmp_path / "classroom.vcd", tmp_path / "classroom.log"
+    result = subprocess.run([sys.executable, "-m", "appsim", "classroom", "--exercise", "2", "--seconds", "0.5",
+                             "--vcd", str(vcd), "--log", str(log)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert f"wrote {vcd} (waveform for PulseView, " in result.stdout
+    logged = list(can.LogReader(log))
+    decoded = sigrok_decode(sigrok_cli, vcd, 125_000)        # samples are the VCD's ticks: microseconds
+    assert len(decoded) == len(logged) > 50
+    assert [d.frame() for d in decoded] == [CanFrame(m.arbitration_id, bytes(m.data), extended=m.is_extended_id,
+                                                     remote=m.is_remote_frame, dlc=m.dlc) for m in logged]
+    assert [d.ack for d in decoded] == ["ACK"] * len(logged) and not any(d.warnings for d in decoded)
+    ends = [(d.start + frame_bits(d.frame()) * 8) / 1e6 for d in decoded]
+    assert ends == pytest.approx([m.timestamp for m in logged], abs=1e-6), "each frame ends at its time in the log"
+
+
+@pytest.mark.parametrize("argv", [["demo", "--out", "{tmp}/demo"], ["board", str(KIT / "solutions" / "ex2.py")],
+                                  ["classroom"], ["monitor", "--transport", "socket"]])
+def test_every_command_that_runs_a_bus_writes_its_waveform(tmp_path, argv):
+    vcd = tmp_path / "bus.vcd"
+    result = subprocess.run([sys.executable, "-m", "appsim", *(a.format(tmp=tmp_path) for a in argv),
+                             "--seconds", "0.3", "--vcd", str(vcd)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    timescale, changes = read_vcd(vcd.read_text())
+    assert timescale == "1 us" and len(changes) > 100
+    assert f"wrote {vcd} (waveform for PulseView, " in result.stdout
