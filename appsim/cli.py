@@ -207,13 +207,18 @@ def build_parser() -> argparse.ArgumentParser:
                     "'slcan' interface can use it as a CAN adapter.")
     monitor.add_argument("--exercise", type=_classroom_exercise, default=2,
                          help="what the classroom runs, 1..6 or ex1..ex6 (default 2)")
+    monitor.add_argument("--firmware", type=Path, metavar="FIRMWARE",
+                         help="your Demo1 firmware on the monitor board (default: solutions/demo1_monitor.py)")
     monitor.add_argument("--slcan", action="store_true", help="SLCAN (Lawicel) protocol instead of text lines")
     monitor.add_argument("--transport", choices=("pty", "socket"), default="pty",
                          help="pty (a /dev/pts path) or socket (socket://127.0.0.1:PORT for pyserial)")
 
-    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0), (monitor, 60.0)):
+    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0)):
         sub.add_argument("--seconds", type=_seconds, default=default_seconds,
                          help=f"simulated time to run, up to a day (default {default_seconds:g} s)")
+    monitor.add_argument("--seconds", type=_seconds, default=60.0,
+                         help="how long the monitor runs, in seconds of real time: it stops then (default 60 s, "
+                              "up to a day; Ctrl-C stops it sooner)")
     for sub in (demo, classroom, monitor):
         sub.add_argument("--seed", type=_seed, default=202,
                          help="seed of the stations' potentiometer values (default 202): same seed, same run")

@@ -161,7 +161,7 @@ def test_monitor_opens_demo1s_port_and_closes_its_link(capsys):
                      "--interface", "virtual", "--channel", "cli-monitor"]) == 0
         seen = list(iter(lambda: peer.recv(timeout=0), None))
     out = capsys.readouterr().out
-    assert "Demo1 CAN monitor on the USB-CDC port socket://127.0.0.1:" in out
+    assert "Demo1 CAN monitor (the solution, demo1_monitor.py) on the USB-CDC port socket://127.0.0.1:" in out
     assert "link outside (Virtual bus channel cli-monitor):" in out, "the link's report, printed as it closes"
     assert len(seen) > 5 and {m.arbitration_id for m in seen} >= {0x088, 0x100}
 
