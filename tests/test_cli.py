@@ -220,8 +220,11 @@ def test_an_outside_frame_shorter_than_a_students_firmware_reads_is_reported_in_
     unguarded = tmp_path / "ex3.py"
     unguarded.write_text((KIT / "solutions" / "ex3.py").read_text().replace("if DataLen >= 5:", "if True:"))
     with can.Bus(interface="virtual", channel="cli-short") as peer:
-        later = threading.Timer(0.3, lambda: peer.send(can.Message(arbitration_id=0x088, data=[1],
-                                                                   is_extended_id=False)))
+        def short_frame_once_linked():                 # the classroom's first frame out here: the link is up
+            peer.recv(timeout=30)
+            peer.send(can.Message(arbitration_id=0x088, data=[1], is_extended_id=False))
+
+        later = threading.Thread(target=short_frame_once_linked)
         later.start()
         status = main(["classroom", "--exercise", "3", "--join", str(unguarded), "--interface", "virtual",
                        "--channel", "cli-short", "--seconds", "0.6"])
