@@ -11,8 +11,10 @@ A line (the kit's format, docs/monitor-format.md):
 seconds since reset by Timer1 (Fosc/4, 1:8, overflows counted here), identifier, STD/XTD, DATA/RTR.
 
 A line for a 5-byte frame is 55 bytes: 29 ms at 19200 baud (8N1, 10 bits a byte), while the frame
-held the bus for at most 0.84 ms, so a busy bus outruns the USART. Frames wait in a queue in RAM; when it is full they are counted and the monitor says how many it lost:
-    # lost 7 frames (queue full: the USART at 19200 baud is slower than the bus)
+held the bus for at most 0.84 ms, so a busy bus outruns the USART. Frames wait in a queue in RAM.
+Once it is full, frames are only counted until it has emptied, and then one short line says how many
+were lost there, so notes take a line in 17 at most, not every other line:
+    # lost 61 frames (queue full)
 
 DSW2 switch 1 ON at reset (RJ0 reads 0): the board is an SLCAN (Lawicel) adapter instead, so a PC
 program such as python-can (`interface="slcan"`) can receive and send frames through it. PC programs
@@ -55,6 +57,7 @@ STATUS_OVERRUN, STATUS_ERROR_PASSIVE, STATUS_BUS_ERROR = 0x08, 0x20, 0x80
 overflows = 0                 # Timer1 overflows since reset: the high part of the time
 queue = []                    # received frames (time, CANMessage) and ("lost", count) notes
 lost = 0                      # frames dropped since the last queued one
+dropping = False              # the queue filled up: frames are counted, not queued, until it has emptied
 output = bytearray()          # the line being sent, byte by byte
 usart_overruns = 0            # times the USART's receiver overran (OERR): each lost at least one byte from the PC
 received = []                 # SLCAN: bytes from the PC (and LOST marks), oldest first
@@ -78,12 +81,17 @@ def count_overflows():
 
 
 def receive():
-    """Move a received frame from the ECAN to the queue, or count it as lost if the queue is full."""
-    global lost
+    """Move a received frame from the ECAN to the queue; from the time the queue is full until it has emptied,
+    count it as lost instead."""
+    global lost, dropping
     message = CANReceiveMessage()
     if message.flags & CAN_RX_OVERFLOW:
         queue.append(("overflow", 1))          # the ECAN dropped at least one frame before this one
     if len(queue) >= QUEUE_FRAMES:
+        dropping = True
+    elif not queue:
+        dropping = False
+    if dropping:
         lost += 1
         return
     if lost:
@@ -105,10 +113,9 @@ def seconds_text(ticks):
 def monitor_line(entry):
     stamp, message = entry
     if stamp == "lost":
-        return (f"# lost {message} frame{'s' if message > 1 else ''} "
-                "(queue full: the USART at 19200 baud is slower than the bus)\r\n")
+        return f"# lost {message} frame{'s' if message > 1 else ''} (queue full)\r\n"
     if stamp == "overflow":
-        return "# lost frames (receive buffers overflowed: the firmware did not read RXB0/RXB1 in time)\r\n"
+        return "# lost frames (RXB0/RXB1 overflowed)\r\n"
     extended = message.flags & CAN_RX_XTD_FRAME
     remote = message.flags & CAN_RX_RTR_FRAME
     ident = f"0x{message.id:08X}" if extended else f"0x{message.id:03X}"

@@ -38,13 +38,17 @@ class BusEvent:
     acked_by: tuple[str, ...] = ()
     error: str = ""                  # "" for a good frame, else what went wrong, in CAN terms
     received: tuple[tuple[str, str], ...] = ()   # (node, what its acceptance logic did)
+    # An error: the bit of the frame (from SOF) where the error flag began, and whether the flag was dominant (an
+    # error-passive sender's is recessive). What a logic analyser would see; not part of the event's repr.
+    flag_at_bit: int = field(default=0, repr=False, compare=False)
+    flag_dominant: bool = field(default=True, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
         return not self.error
 
     def __str__(self) -> str:
-        time = f"{self.start_ps / PS_PER_SECOND:12.6f}"
+        time = f"{self.end_ps / PS_PER_SECOND:12.6f}"       # when receivers have it, as the trace and logs say
         if self.error:
             return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}"
         acks = ",".join(self.acked_by) or "-"
@@ -414,8 +418,8 @@ class Bus:
         """Nobody ACKed. An error-active sender's flag makes the frame invalid for everyone; an
         error-passive sender's recessive flag leaves it valid for receivers, and its TEC unchanged."""
         passive = sender.error_passive
-        flag_start = start + (bits - 8) * self.bit_ps          # the ACK delimiter
-        end = flag_start + (ERROR_FLAG_BITS + ERROR_DELIMITER_BITS) * self.bit_ps
+        flag_at = bits - 8                                      # the ACK delimiter
+        end = start + (flag_at + ERROR_FLAG_BITS + ERROR_DELIMITER_BITS) * self.bit_ps
         self.busy_until = end + INTERMISSION_BITS * self.bit_ps
 
         def end_of_error() -> None:
@@ -430,7 +434,7 @@ class Bus:
             sender.failed(buffer, tec_increment=0 if passive else 8)
             self._after_transmit(sender)
             self.trace.append(BusEvent(start, end, sender.name, frame, (), "ACK error: no node acknowledged",
-                                       tuple(received)))
+                                       tuple(received), flag_at_bit=flag_at, flag_dominant=not passive))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_error)
@@ -456,7 +460,7 @@ class Bus:
                 port.failed(failed_buffer, tec_increment=tec_increment)
                 self._after_transmit(port)
             self.trace.append(BusEvent(start, end, sender.name, frame, (), f"{sender_error}: {why}",
-                                       tuple(received)))
+                                       tuple(received), flag_at_bit=at_bit))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_error)
