@@ -102,7 +102,7 @@ def test_bad_input_gets_a_clear_error(argv, complaint):
     (["check", "ex9"], "argument EXERCISE: exercise 'ex9' does not exist: the workshop has Ex1..Ex6 (1..6, ex1..ex6) "
                        "and demo1"),
     (["demo", "--seed", "x"], "argument --seed: a seed is a whole number, e.g. 2024; got 'x'"),
-    (["grade", "class", "--time-limit", "0"], "the time limit is wall-clock seconds, more than 0 and at most 3600"),
+    (["grade", "class", "--time-limit", "0"], "the time limit is CPU seconds, more than 0 and at most 3600"),
     (["grade", "class", "--jobs", "two"], "--jobs is how many exercises are graded at once, a whole number: 1 or more; "
                                           "got 'two'"),
     (["bittiming", "0"], "classic CAN runs at 1 bit/s .. 1,000,000 bit/s (1 Mbit/s, ISO 11898): give the bit rate in "
