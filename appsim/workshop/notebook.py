@@ -111,6 +111,15 @@ def _after_a_run(method: Callable[..., T]) -> Callable[..., T | Note]:
     return view
 
 
+def _shown(figure: Figure) -> Figure:
+    """A new figure for the cell's result to show, once: pyplot lets go of it, so the inline backend does not draw it
+    a second time."""
+    import matplotlib.pyplot as plt
+
+    plt.close(figure)
+    return figure
+
+
 def _ids(ids: int | Iterable[int] | None) -> set[int] | None:
     return None if ids is None else {ids} if isinstance(ids, int) else set(ids)
 
@@ -258,17 +267,32 @@ class Station:
     def nodes(self) -> list[str]:
         return [] if self.trial is None else [mcu.name for mcu in self.trial.bus.boards()]
 
-    @_after_a_run
-    def trace(self, ids: int | Iterable[int] | None = None, *, limit: int = 16, loopback: bool = False,
-              acceptance: bool = False) -> TraceTable:
-        """The monitor's lines, first `limit` of them, of the frames with `ids` (all if None); `loopback`: the frames
-        nodes in Loopback mode sent themselves; `acceptance`: a column with what your acceptance logic did with each."""
+    @property
+    def message_id(self) -> int | None:
+        """The MESSAGE_ID1 your board sends with (None if nothing ran)."""
+        return None if self.trial is None else self.trial.own_id
+
+    def _events(self, ids: int | Iterable[int] | None, mine: bool, loopback: bool) -> list[BusEvent]:
         assert self.trial is not None
-        trial, wanted = self.trial, _ids(ids)
-        events = [e for e in (trial.bus.loopback_trace if loopback else trial.bus.trace)
-                  if wanted is None or e.frame.can_id in wanted][:limit]
-        column = (f"{trial.name}'s acceptance logic", self._reception) if acceptance else None
-        return TraceTable(events, self.nodes, column=column)
+        wanted = _ids(ids)
+        return [e for e in (self.trial.bus.loopback_trace if loopback else self.trial.bus.trace)
+                if (wanted is None or e.frame.can_id in wanted) and (not mine or e.sender == self.trial.name)]
+
+    @_after_a_run
+    def trace(self, ids: int | Iterable[int] | None = None, *, mine: bool = False, limit: int = 16,
+              loopback: bool = False, acceptance: bool = False) -> TraceTable:
+        """The monitor's lines, the first `limit`, of the frames with `ids` (all if None) or `mine` (your board's);
+        `loopback`: the frames nodes in Loopback mode sent themselves; `acceptance`: one more column, what your board's
+        acceptance logic did with each frame."""
+        assert self.trial is not None
+        column = (f"{self.trial.name}'s acceptance logic", self._reception) if acceptance else None
+        return TraceTable(self._events(ids, mine, loopback)[:limit], self.nodes, column=column)
+
+    @_after_a_run
+    def wire_bits(self, *, loopback: bool = False) -> Figure | Note:
+        """Your board's first frame (on the bus, or `loopback`: in Loopback mode) bit by bit (`plots.wire_bits`)."""
+        sent = self._events(None, True, loopback)
+        return _shown(plots.wire_bits(sent[0].frame)) if sent else Note(f"{self._who()} sent no frame.")
 
     def _reception(self, event: BusEvent) -> str:
         assert self.trial is not None
@@ -288,7 +312,7 @@ class Station:
                 return bus_timeline(events, self.nodes)
             except ImportError:
                 pass
-        return plots.bus_timeline(self.trial.bus.trace, start_ps=start_ps, end_ps=end_ps)
+        return _shown(plots.bus_timeline(self.trial.bus.trace, start_ps=start_ps, end_ps=end_ps))
 
     @_after_a_run
     def error_counters(self) -> Note:
@@ -300,10 +324,20 @@ class Station:
     def bus_load(self, *, window_ms: float = 10) -> Figure:
         """The bus load in windows of `window_ms` over the whole run (`plots.bus_load_over_time`)."""
         assert self.trial is not None
-        return plots.bus_load_over_time(self.trial.bus.trace, 0, self.trial.now, round(window_ms * PS_PER_SECOND / 1000))
+        window_ps = round(window_ms * PS_PER_SECOND / 1000)
+        return _shown(plots.bus_load_over_time(self.trial.bus.trace, 0, self.trial.now, window_ps))
 
     @_after_a_run
-    def write_log(self, path: str | Path) -> Path:
-        """The run's frames as a CAN log (.log for candump, .asc, .blf, .csv: `monitor.write_log`)."""
+    def write_log(self, path: str | Path, *, show: int = 5) -> Note:
+        """The run's frames written as a CAN log (.log for candump, .asc, .blf, .csv: `monitor.write_log`), and the
+        first `show` lines of a text log."""
         assert self.trial is not None
-        return monitor.write_log(self.trial.bus.trace, path)
+        log = monitor.write_log(self.trial.bus.trace, path)
+        first = [] if log.suffix == ".blf" else log.read_text().splitlines()[:show]
+        return Note("\n".join([f"{log}: {len(self.trial.bus.trace)} frames", *first]), table=True)
+
+    @_after_a_run
+    def terminal(self, *, characters: int = 1500) -> Note:
+        """What a terminal on the PC shows of the USB-CDC port: the first `characters` the board sent."""
+        text = self.usb.decode("latin-1").replace("\0", "")      # C18's putsUSART sends the NUL; terminals skip it
+        return Note(text[:characters] or "(nothing)", table=True)
