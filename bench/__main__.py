@@ -129,15 +129,16 @@ def _linked(config: Config) -> list[Figure]:
 
 def _knobs(config: Config) -> list[Figure]:
     turns = config.knob_turns
+    each = f"{turns} turn{'' if turns == 1 else 's'} of the master's knob each"
     before = [t for exercise in knobs.SECONDS for t in knobs.rerun_from_zero_s(exercise, turns)]
     going_on = [t for exercise in knobs.GOING_ON for t in knobs.turn_s(exercise, turns)]
     return [
         Figure("notebook knob turn, as before: the classroom rerun from zero, LCD drawn by matplotlib", "wall s",
-               tuple(before), note=f"Ex1..Ex6 notebooks' first runs, {turns} moves each"),
+               tuple(before), note=f"Ex1..Ex6 after their notebooks' first runs, {each}"),
         Figure("notebook knob turn: the live classroom goes on 0.2 s, LCD redrawn (Ex2..Ex6)", "wall s",
-               tuple(going_on), target=0.25, lower_is_better=True, note=f"{turns} moves each; the kernel's side"),
+               tuple(going_on), target=0.25, lower_is_better=True, note=f"{each}; the kernel's side"),
         Figure("notebook knob turn on Ex1: the board restarts (it reads its knob once)", "wall s",
-               tuple(knobs.turn_s("ex1", turns)), target=0.25, lower_is_better=True),
+               tuple(knobs.turn_s("ex1", turns)), target=0.25, lower_is_better=True, note=each),
     ]
 
 

@@ -90,7 +90,8 @@ class TraceTable:
         if self.column is not None:
             cells.append(html.escape(self.column[1](event)))
         style = " style='background:#ffebe9'" if event.error else ""
-        return f"<tr{style}>" + "".join(f"<td style='padding:1px 8px;text-align:left'>{cell}</td>" for cell in cells) + "</tr>"
+        row = "".join(f"<td style='padding:1px 8px;text-align:left'>{cell}</td>" for cell in cells)
+        return f"<tr{style}>{row}</tr>"
 
 
 def bus_load(trace: Sequence[BusEvent], start_ps: int, end_ps: int) -> float:

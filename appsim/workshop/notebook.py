@@ -1,5 +1,5 @@
-"""The notebooks' side of the kit: your firmware cell's file on your board in the classroom, shown as the board (its LCD,
-its knobs) with the bus as a trace table and a timeline, and the check, every line numbered as in the firmware cell.
+"""The notebooks' side of the kit: your firmware cell's file on your board in the classroom, shown as the board (LCD,
+knobs) with the bus as a trace table and a timeline, and the check, every line numbered as in the firmware cell.
 
 A firmware that does not load or stops is never a traceback here: the cell shows what the check will say about it, and
 every later cell says there is nothing to show, so Run All reaches the check. The cells stay one line each:
@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
 CELL = "the firmware cell"          # how messages name the code a firmware cell wrote
 SEED = 202                          # the potentiometers of the other stations (yours and the master's are knobs)
-KNOB_SECONDS = 0.2                  # how long the classroom goes on after a knob is turned: two of the master's broadcasts
+KNOB_SECONDS = 0.2                  # the classroom goes on this long after a knob is turned: two master broadcasts
 RESET_ON_TURN = {"ex1": "EX1 reads the potentiometer once, before its only frame: each turn also presses RESET, and "
                         "your board starts again"}
 WATCHED_CLASSROOM = 2               # Demo1's monitor watches the classroom of EX2

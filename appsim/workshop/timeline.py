@@ -56,7 +56,8 @@ def bus_timeline(trace: Sequence[BusEvent], nodes: Sequence[str]) -> Figure:
                                     "hover over a frame"}},
         barmode="overlay", bargap=0.25, uniformtext={"mode": "hide", "minsize": 9}, dragmode="zoom",
         height=140 + ROW_PX * max(1, len(senders)), margin={"l": 10, "r": 10, "t": 70, "b": 40},
-        xaxis={"title": "time (ms)"}, yaxis={"categoryorder": "array", "categoryarray": senders[::-1], "fixedrange": True},
+        xaxis={"title": "time (ms)"},
+        yaxis={"categoryorder": "array", "categoryarray": senders[::-1], "fixedrange": True},
         legend={"orientation": "h", "x": 1, "xanchor": "right", "y": 1.02, "yanchor": "bottom"},
         template="plotly_white")
     return figure
