@@ -86,7 +86,7 @@ class TraceTable:
         ack = (f"<b style='color:#cf222e'>error: {html.escape(event.error)}</b>" if event.error
                else html.escape(acks(event, self.nodes)))
         cells = [f"{event.start_ps / PS_PER_SECOND:.6f}", html.escape(event.sender), f"<code>{ident}</code>", kind,
-                 str(frame.dlc), f"<code>{data}</code>", ack]
+                 str(frame.dlc), f"<code>{data}</code>" if data else "", ack]
         if self.column is not None:
             cells.append(html.escape(self.column[1](event)))
         style = " style='background:#ffebe9'" if event.error else ""
