@@ -4,9 +4,10 @@ each node's error counters, and logs in python-can's file formats (candump .log,
 from __future__ import annotations
 
 import errno
+import html
 import io
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from contextlib import suppress
 from pathlib import Path
 
@@ -41,6 +42,65 @@ def format_event(event: BusEvent) -> str:
     tail = f"** {event.error}" if event.error else (",".join(event.acked_by) or "-")
     return (f"{stamp(event):11.6f}  {event.sender:<9} {ident:>8}  {kind:<8} "
             f"{frame.dlc:>3}  {data:<23}  {tail}")
+
+
+def acks(event: BusEvent, nodes: Sequence[str]) -> str:
+    """Who ACKed a frame, in a few words: "all" (every other node of `nodes`), "none", "all but station3", or the few
+    that did ("monitor")."""
+    if not event.acked_by:
+        return "none"
+    missing = [node for node in nodes if node != event.sender and node not in event.acked_by]
+    if not missing:
+        return "all"
+    if len(missing) < len(event.acked_by):
+        return "all but " + ", ".join(missing)
+    return ", ".join(event.acked_by)
+
+
+class TraceTable:
+    """Bus events as the monitor lists them, one line a frame: in a terminal `format_event`'s lines, in Jupyter a table
+    whose ACK column says who ACKed in a few words (`acks` among `nodes`) and whose error frames stand out in red.
+    `column`, if given, is one more column: its title and what it shows for each event."""
+
+    def __init__(self, events: Iterable[BusEvent], nodes: Sequence[str], *,
+                 column: tuple[str, Callable[[BusEvent], str]] | None = None):
+        self.events = list(events)
+        self.nodes = list(nodes)
+        self.column = column
+
+    def __len__(self) -> int:
+        return len(self.events)
+
+    def __str__(self) -> str:
+        lines = [HEADER]
+        for event in self.events:
+            lines.append(format_event(event))
+            if self.column is not None:
+                lines.append(f"{'':>13}{self.column[0]}: {self.column[1](event)}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        titles = ["time (s)", "sender", "ID", "type", "DLC", "data", "ACK"] + ([self.column[0]] if self.column else [])
+        head = "".join(f"<th style='text-align:left;padding:1px 8px'>{html.escape(title)}</th>" for title in titles)
+        rows = "".join(self._row(event) for event in self.events) or \
+            f"<tr><td colspan='{len(titles)}' style='padding:1px 8px'>no frames</td></tr>"
+        return (f"<table class='appsim-trace' style='border-collapse:collapse;font-size:12px;white-space:nowrap'>"
+                f"<thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
+
+    def _row(self, event: BusEvent) -> str:
+        frame = event.frame
+        ident = f"{frame.can_id:08X}" if frame.extended else f"{frame.can_id:03X}"
+        kind = ("EXT" if frame.extended else "STD") + (" RTR" if frame.remote else "")
+        data = "" if frame.remote else frame.data.hex(" ").upper()
+        ack = (f"<b style='color:#cf222e'>error: {html.escape(event.error)}</b>" if event.error
+               else html.escape(acks(event, self.nodes)))
+        cells = [f"{event.start_ps / PS_PER_SECOND:.6f}", html.escape(event.sender), f"<code>{ident}</code>", kind,
+                 str(frame.dlc), f"<code>{data}</code>" if data else "", ack]
+        if self.column is not None:
+            cells.append(html.escape(self.column[1](event)))
+        style = " style='background:#ffebe9'" if event.error else ""
+        row = "".join(f"<td style='padding:1px 8px;text-align:left'>{cell}</td>" for cell in cells)
+        return f"<tr{style}>{row}</tr>"
 
 
 def bus_load(trace: Sequence[BusEvent], start_ps: int, end_ps: int) -> float:

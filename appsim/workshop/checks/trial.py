@@ -67,15 +67,21 @@ def identity_of(module: ModuleType) -> dict[str, int]:
     return {name: value for name, value in values.items() if isinstance(value, int) and not isinstance(value, bool)}
 
 
+def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmware:
+    """The firmware module `load()` gives (its code from `filename`, called `label`); one that does not load is
+    `Fatal`, with the loader's words."""
+    try:
+        module = load()
+    except FirmwareError as error:
+        raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
+    return Firmware(module.main, filename, label, identity_of(module))
+
+
 def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable) -> Firmware:
     """The firmware as a runnable thing; one that does not load is `Fatal`, with its line."""
     if isinstance(firmware, (str, Path)):
         path = Path(firmware)
-        try:
-            module = load_firmware(path)
-        except FirmwareError as error:
-            raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-        return Firmware(module.main, str(path), str(path), identity_of(module))
+        return loaded(lambda: load_firmware(path), str(path), str(path))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):
             raise Fatal(Fault("load", f"{firmware.__name__} has no main(): a firmware defines `def main():` that "
