@@ -26,8 +26,8 @@ fills that too: when the FIFO then overruns (OERR), the adapter resets its recei
 refuses the command that lost bytes with BELL, so it always answers the next one.
 """
 from appsim.can import slcan
-from appsim.firmware import *
 from appsim.can.frame import CanFrame
+from appsim.firmware import *
 
 QUEUE_FRAMES = 16             # frames waiting for the USART (13 bytes of RAM each)
 COMMAND_CHARS = 32            # longest SLCAN command: T + 8 + 1 + 16 = 26 characters

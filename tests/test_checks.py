@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from appsim.firmware.loader import load_firmware
 from appsim.workshop.checks import EXERCISES, CheckResult, Verdict, check, check_names
 from appsim.workshop.checks.trial import Trial, resolve
-from appsim.firmware.loader import load_firmware
 
 KIT = Path(__file__).resolve().parent.parent
 

@@ -13,11 +13,11 @@ import pytest
 import serial
 
 from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus
-from appsim.firmware import *  # noqa: F403
-from appsim.chip.mcu import PIC18F8680
-from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.board.usbcdc import UsbCdc
+from appsim.bus.wire import Bus
+from appsim.chip.mcu import PIC18F8680
+from appsim.firmware import *
+from appsim.sim import PS_PER_SECOND, Simulator
 
 KIT = Path(__file__).resolve().parent.parent
 SOLUTION = KIT / "solutions" / "demo1_monitor.py"

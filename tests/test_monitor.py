@@ -8,18 +8,27 @@ import subprocess
 
 import can
 import pytest
+from conftest import World
+from test_bus_gotchas import normal_node
 
-from appsim.bus.monitor import (LOG_FORMATS, HEADER, LiveTrace, TraceLog, bus_load, error_counters, format_event,
-                                summary, write_log)
+from appsim.bus.monitor import (
+    HEADER,
+    LOG_FORMATS,
+    LiveTrace,
+    TraceLog,
+    bus_load,
+    error_counters,
+    format_event,
+    summary,
+    write_log,
+)
 from appsim.bus.trace import TRACE_WINDOW
 from appsim.bus.wire import Bus
 from appsim.can.bits import INTERMISSION_BITS
 from appsim.errors import OutputError
+from appsim.firmware import *
 from appsim.workshop import checks
 from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES
-from conftest import World
-from test_bus_gotchas import normal_node
-from appsim.firmware import *  # noqa: F403
 
 
 @pytest.fixture

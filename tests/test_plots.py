@@ -8,12 +8,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pytest
 
-from appsim.workshop import plots
+from appsim.board.app023 import APP023
+from appsim.bus.monitor import bus_load
+from appsim.bus.wire import Bus
 from appsim.can.bits import encode, encode_annotated
 from appsim.can.bittiming import BitTiming
-from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus
-from appsim.workshop.classroom import Classroom
+from appsim.can.frame import CanFrame
 from appsim.firmware import (
     CAN_CONFIG_ALL_MSG,
     CAN_TX_PRIORITY_0,
@@ -21,9 +21,9 @@ from appsim.firmware import (
     CANIsRxReady,
     CANSendMessage,
 )
-from appsim.can.frame import CanFrame
-from appsim.bus.monitor import bus_load
 from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.workshop import plots
+from appsim.workshop.classroom import Classroom
 
 EX1_FRAME = CanFrame(0x100, bytes([1, 2, 3, 0x02, 0x9A]))
 CLASSROOM_TIMING = BitTiming(sjw=4, brp=10, seg1ph=8, seg2ph=4, prseg=3)

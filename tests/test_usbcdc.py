@@ -13,7 +13,7 @@ import serial
 from appsim.board.app023 import APP023
 from appsim.board.usbcdc import LEFT, NOBODY, UsbCdc
 from appsim.bus.wire import Bus
-from appsim.firmware import *  # noqa: F403
+from appsim.firmware import *
 from appsim.sim import PS_PER_SECOND, Simulator, ps
 
 LINK_19200 = (USART_TX_INT_OFF & USART_RX_INT_OFF & USART_ASYNCH_MODE & USART_EIGHT_BIT

@@ -8,15 +8,15 @@ from pathlib import Path
 
 import can
 import pytest
+from test_bus_gotchas import normal_node
+from test_vcd import level_at, read_vcd, sigrok_cli, sigrok_decode  # noqa: F401 (sigrok_cli: a fixture)
 
 from appsim.bus.waveform import WaveformLog, wire_levels, write_waveform
 from appsim.bus.wire import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
 from appsim.can.bits import encode, frame_bits
 from appsim.can.frame import CanFrame
 from appsim.errors import OutputError
-from appsim.firmware import *  # noqa: F403
-from test_bus_gotchas import normal_node
-from test_vcd import level_at, read_vcd, sigrok_cli, sigrok_decode  # noqa: F401 (sigrok_cli: a fixture)
+from appsim.firmware import *
 
 KIT = Path(__file__).resolve().parent.parent
 BIT_PS = 8_000_000                      # 125 kbit/s

@@ -8,7 +8,7 @@ import io
 from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from appsim.board import font5x7
 from appsim.chip.mcu import PIC18F8680
@@ -145,7 +145,6 @@ class GLCD:
     def picture(self, ax: Axes | None = None, *, scale: float = 4.0) -> Figure:
         """Draw the module as it looks: dark pixels on the yellow-green backlight (grey-green when off)."""
         import matplotlib.pyplot as plt
-        import numpy as np
         from matplotlib.patches import FancyBboxPatch
 
         if ax is None:

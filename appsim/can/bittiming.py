@@ -8,6 +8,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
+
 from appsim.errors import BitTimingError
 
 SYNC_SEG_TQ = 1

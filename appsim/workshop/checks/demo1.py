@@ -8,9 +8,9 @@ from itertools import pairwise
 
 from appsim.bus.wire import BusEvent
 from appsim.chip.usart import PC_BAUD
+from appsim.sim import PS_PER_SECOND
 from appsim.workshop.checks.trial import Trial, count, listing
 from appsim.workshop.checks.verdict import CheckResult
-from appsim.sim import PS_PER_SECOND
 
 BAUD = "USART at 19200 baud"
 INVISIBLE = "listen-only: invisible on the bus"

@@ -4,19 +4,19 @@ data frames with the station's ID make it a faulty node, since only the station 
 """
 from __future__ import annotations
 
+from appsim.bus.wire import BusEvent
+from appsim.firmware import Delay1KTCYx
 from appsim.firmware.an738 import (
     CAN_CONFIG_FLAGS,
     CAN_TX_MSG_FLAGS,
     CANInitialize,
     CANSendMessage,
 )
-from appsim.bus.wire import BusEvent
 from appsim.workshop.checks.ex3 import master_frames
 from appsim.workshop.checks.judging import data_frames, why_silent
 from appsim.workshop.checks.trial import MS, Trial, count, describe, hex_id, listing, ms, took
 from appsim.workshop.checks.verdict import CheckResult
 from appsim.workshop.course import station_ids
-from appsim.firmware import Delay1KTCYx
 
 ANSWERS = "answers an RTR for MESSAGE_ID1 with its A/D"
 RXB1 = "RXB1 takes only MESSAGE_ID1"
