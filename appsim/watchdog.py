@@ -2,13 +2,15 @@
 
 The simulated clock only advances when firmware touches a register, so a loop that never does (`while True: pass`),
 a sleep or a runaway recursion would hang the simulation. Like the PIC's WDT, the watchdog resets it: after
-`WATCHDOG_SECONDS` of wall time with no register access, the firmware gets a `FirmwareHung` error saying what the
-watchdog saw and where, and the other boards go on. Ctrl-C stops the run, whichever firmware it lands in, once the
+`WATCHDOG_SECONDS` with no register access (of CPU time spent spinning, or of wall time asleep; a busy machine that
+gives the firmware only part of a CPU gets it more wall time), the firmware gets a `FirmwareHung` error saying what
+the watchdog saw and where, and the other boards go on. Ctrl-C stops the run, whichever firmware it lands in, once the
 simulator's own work in hand (a log record) is done.
 """
 from __future__ import annotations
 
 import linecache
+import os
 import signal
 import threading
 import time
@@ -21,6 +23,7 @@ from typing import TYPE_CHECKING
 import greenlet
 
 from appsim.errors import FirmwareHung
+from appsim.schedstat import read_schedstat, schedstat
 
 if TYPE_CHECKING:
     from appsim.sim import Process, Simulator
@@ -28,7 +31,9 @@ if TYPE_CHECKING:
 __all__ = ["WATCHDOG_SECONDS", "FirmwareHung", "ctrl_c_stops_the_run", "ctrl_c_waits", "watchdog"]
 
 WATCHDOG_SECONDS = 2.0
-WAITING_CPU_SHARE = 0.1     # a firmware that used less of the watched time than this was waiting, not looping
+ASLEEP_SHARE = 0.9          # a firmware asleep (neither on a CPU nor waiting for one) this much of the time waits
+SPINNING_SHARE = 0.9        # one that was on a CPU this much of a watchdog period spun all of it
+LAST_RESORT = 10            # watchdog periods of wall time after which a firmware is stopped however busy the machine
 RECURSION_DEPTH = 1000      # Python's own default limit: a firmware deeper than that raised the limit and recursed on
 
 
@@ -45,19 +50,31 @@ def watchdog(sim: Simulator, seconds: float | None = None) -> Iterator[None]:
             or signal.getsignal(signal.SIGALRM) not in (signal.SIG_DFL, None)):
         yield
         return
-    seen: list = [None, None, 0.0]          # the running process, its simulated time, this thread's CPU time then
+    clock = _ThreadClock()
+    seen: list = [None, None, clock.now()]      # the running process, its simulated time, the thread's times then
 
     def bark(signum: int, frame: FrameType | None) -> None:
-        process, cpu = sim.running, time.thread_time()
+        process, now = sim.running, clock.now()
         if (process is None or greenlet.getcurrent() is not process or not process.watched or process.finished
                 or frame is None):
-            seen[:] = None, None, cpu
+            seen[:] = None, None, now
             return
         if seen[:2] != [process, process.local_time]:
-            seen[:] = process, process.local_time, cpu
+            seen[:] = process, process.local_time, now
             return
+        wall, on_cpu, queued = (now[i] - seen[2][i] for i in range(3))
+        asleep = wall - on_cpu - queued
+        if (on_cpu < SPINNING_SHARE * seconds and asleep < ASLEEP_SHARE * wall
+                and wall < (LAST_RESORT - 0.5) * seconds):
+            return                              # computing, on a machine too busy to give it a whole CPU
         if process.failure is None:
-            process.failure = FirmwareHung(what_it_saw(process, frame, seconds, (cpu - seen[2]) / seconds))
+            if asleep >= ASLEEP_SHARE * wall:
+                ran, waiting = f"{seconds:g} s (wall time)", True
+            elif on_cpu >= SPINNING_SHARE * seconds:
+                ran, waiting = f"{seconds:g} s (CPU time)", False
+            else:
+                ran, waiting = f"{round(wall / seconds) * seconds:g} s (wall time, on a machine too busy)", False
+            process.failure = FirmwareHung(what_it_saw(process, frame, ran, waiting))
             raise process.failure
         process.freeze()                        # it caught the last bark's FirmwareHung and went on
 
@@ -68,9 +85,28 @@ def watchdog(sim: Simulator, seconds: float | None = None) -> Iterator[None]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, signal.SIG_DFL)
+        clock.close()
 
 
-def what_it_saw(process: Process, frame: FrameType, seconds: float, cpu_share: float) -> str:
+class _ThreadClock:
+    """This thread's (wall, on a CPU, waiting for a CPU) seconds: schedstat's counts where Linux keeps them, else its
+    CPU time alone (a thread that waited for a CPU then looks asleep)."""
+
+    def __init__(self) -> None:
+        self._fd = schedstat("/proc/thread-self/schedstat")
+
+    def now(self) -> tuple[float, float, float]:
+        counts = None if self._fd is None else read_schedstat(self._fd)
+        on_cpu, queued = counts or (time.thread_time(), 0.0)
+        return time.monotonic(), on_cpu, queued
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def what_it_saw(process: Process, frame: FrameType, ran: str, asleep: bool) -> str:
     """The watchdog's message: a wait, a recursion or a loop, at which line of the firmware, and what to do."""
     depth, mine = 0, None
     caller: FrameType | None = frame
@@ -83,8 +119,8 @@ def what_it_saw(process: Process, frame: FrameType, seconds: float, cpu_share: f
     if mine is not None:
         line = linecache.getline(mine.f_code.co_filename, mine.f_lineno).strip()
         place = f" at line {mine.f_lineno} of {Path(mine.f_code.co_filename).name} (`{line}`)"
-    ran = f"main() ran {seconds:g} s (wall time){place} without touching any register"
-    if cpu_share < WAITING_CPU_SHARE:
+    ran = f"main() ran {ran}{place} without touching any register"
+    if asleep:
         return (f"{ran}, waiting: a sleep (time.sleep) or a read that blocks. The simulated clock moves only as "
                 "firmware works the board, so a sleep stops it; to wait, poll Timer1's PIR1bits.TMR1IF or call "
                 "Delay10KTCYx(), as the workshop's C does")

@@ -203,7 +203,7 @@ def test_a_joined_firmware_that_hangs_inside_except_exception_stops_its_own_stat
         """)
     result = appsim("classroom", "--exercise", "2", "--join", str(hang), "--seconds", "1")
     assert result.returncode == 1 and "Traceback" not in result.stderr
-    assert (f"station1 ({hang}) stopped: main() ran 2 s (wall time) at line 9 of hang.py (`while True:`) without "
+    assert (f"station1 ({hang}) stopped: main() ran 2 s (CPU time) at line 9 of hang.py (`while True:`) without "
             "touching any register: an endless loop") in result.stderr
     assert "station2       110  STD" in result.stdout, "the class goes on"
 

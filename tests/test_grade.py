@@ -18,9 +18,11 @@ import pytest
 from appsim.errors import GradeError
 from appsim.workshop.checks import check
 from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS, STARTERS
-from appsim.workshop.grading.grade import run
+from appsim.workshop.grading.grade import grade_exercise, run
 from appsim.workshop.grading.submissions import find_submissions
-from appsim.workshop.sandbox.children import Limits
+from appsim.workshop.sandbox import children
+from appsim.workshop.sandbox.children import Limits, Sandbox
+from appsim.workshop.sandbox.isolation import isolation
 
 KIT = Path(__file__).resolve().parent.parent
 SEED = 2024
@@ -448,3 +450,17 @@ def test_a_firmware_that_sleeps_between_accesses_is_stopped_by_its_time_asleep(t
     assert result["fault"] == "stalled" and result["score"] == 0
     assert "the firmware slept: more than 2 s in all" in result["checks"][0]["message"]
     assert time.monotonic() - started < 60
+
+
+def test_a_child_left_waiting_past_its_boot_time_costs_the_next_student_nothing(monkeypatch):
+    """Each exercise takes the child that booted meanwhile. One that waited longer than BOOT_S for its turn (the
+    exercise before took that long: a slow firmware, a busy machine) is replaced, never handed over dead: the next
+    student got 'stalled', for nothing their firmware did."""
+    monkeypatch.setattr(children, "BOOT_S", 4.0)
+    source = (SOLUTIONS / EXERCISE_FILES["ex1"]).read_bytes()
+    with Sandbox(isolation(), Limits()) as sandbox:
+        first = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None)
+        time.sleep(5.0)                 # the next child booted meanwhile and has waited past its boot time since
+        second = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None)
+    assert first["fault"] is None, first["checks"][0]["message"]
+    assert second == first

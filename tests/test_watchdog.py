@@ -182,3 +182,58 @@ def test_a_lone_firmware_writing_registers_forever_stops_where_the_run_ends():
                "sim.run(until=10**9)\nprint(sim.now, mcu.process.local_time - sim.now < 10**6)\n")
     result = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, timeout=60)
     assert result.stdout.split() == ["1000000000", "True"], result.stderr
+
+
+@pytest.fixture
+def busy_machine():
+    """Three times as many CPU-bound processes as cores: a firmware gets about a quarter of a CPU."""
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(3 * (os.cpu_count() or 1))]
+    yield
+    for burner in burners:
+        burner.kill()
+        burner.wait()
+
+
+def cpu_work(seconds: float):
+    """A function that computes for about `seconds` of CPU time, measured here before the machine is busy."""
+    started = time.thread_time()
+    while time.thread_time() - started < 0.05:
+        sum(range(1000))
+    turns = 0
+    started = time.thread_time()
+    while time.thread_time() - started < 0.05:
+        sum(range(1000))
+        turns += 1
+    rounds = round(turns * seconds / 0.05)
+
+    def work():
+        for _ in range(rounds):
+            sum(range(1000))
+    return work
+
+
+def test_a_firmware_computing_on_a_busy_machine_is_not_taken_for_hung(world, busy_machine):
+    """0.4 s of CPU between two register accesses, under the watchdog's 0.5 s: with a quarter of a CPU that takes more
+    than a second of wall time, and the watchdog, which counts CPU time spinning, lets it finish."""
+    work = cpu_work(0.4)
+
+    def thinker():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
+        work()
+        while True:
+            CANIsRxReady()
+
+    process = run_beside_a_sender(world, thinker)
+    assert process.failure is None
+
+
+def test_an_endless_loop_on_a_busy_machine_is_still_stopped(world, busy_machine):
+    def stuck():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
+        while True:
+            pass
+
+    started = time.monotonic()
+    process = run_beside_a_sender(world, stuck)
+    assert isinstance(process.failure, FirmwareHung) and "endless loop" in str(process.failure)
+    assert time.monotonic() - started < 10 * 0.5 + 1, "at the latest after LAST_RESORT watchdog periods"

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from appsim.errors import SandboxUnavailable
+from appsim.schedstat import read_schedstat, schedstat
 from appsim.workshop.sandbox import protocol as wire
 from appsim.workshop.sandbox.isolation import ENVIRONMENT, Isolation, import_path, seccomp_program
 from appsim.workshop.sandbox.protocol import Channel, ProtocolError
-from appsim.workshop.sandbox.usage import read_schedstat, schedstat
 
 BOOT = ("import json, sys; settings = json.loads(sys.argv[1]); sys.path[:0] = settings['path']; "
         "from appsim.workshop.sandbox.child import main; main(settings)")
@@ -97,14 +97,18 @@ class Child:
         watchdog.watch(self)
 
     def ready(self, deadline: float) -> bool:
-        """Whether it booted and said hello by `deadline` (which stays its last resort)."""
+        """Whether it booted and said hello by `deadline` (which stays its last resort). From then on only the grader's
+        waits on it set `expires_at`: its boot time no longer counts."""
         self.deadline = deadline
         self.expires_at = min(deadline, self.expires_at)
         try:
             hello = self.channel.receive() == wire.HELLO
         except ProtocolError:
             return False
-        if hello and (pid := self.firmware_pid()) is not None:
+        self.expires_at = deadline
+        if not hello or self.expired:           # its boot time ran out before its turn came (its hello still there)
+            return False
+        if (pid := self.firmware_pid()) is not None:
             self._schedstat = schedstat(f"/proc/{pid}/schedstat")
             self._waited_s = self.waited_for_cpu()
         return hello
@@ -228,7 +232,9 @@ class Sandbox:
         """A child that has booted; the next one starts booting meanwhile. SandboxUnavailable if none will boot."""
         problem = ""
         for _ in range(BOOT_ATTEMPTS):
-            child = self._spare or self._child()
+            child = self._spare if self._spare is not None and not self._spare.expired else self._child()
+            if child is not self._spare and self._spare is not None:
+                self._spare.kill()          # it waited for its turn past its boot time, and the watchdog ended it
             self._spare = self._child()
             if child.ready(deadline):
                 return child
