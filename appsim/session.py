@@ -227,7 +227,7 @@ def print_lcds(boards: list[APP023], out: TextIO) -> None:
         group = boards[row:row + 3]
         print("   ".join(f"{board.name:<23}" for board in group), file=out)
         screens = [str(board.glcd).splitlines() for board in group]
-        for lines in zip(*screens):
+        for lines in zip(*screens, strict=True):
             print("   ".join(f"{line:<23}" for line in lines), file=out)
 
 
@@ -242,7 +242,7 @@ def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
     figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 2.4 * rows), squeeze=False)
     for ax in axes.flat:
         ax.axis("off")
-    for ax, board in zip(axes.flat, boards):
+    for ax, board in zip(axes.flat, boards, strict=False):
         board.glcd.picture(ax=ax)
         ax.set_title(board.name, fontsize=10)
     figure.tight_layout()

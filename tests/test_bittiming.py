@@ -271,9 +271,9 @@ def test_a_fixed_sjw_above_phase_segment_1_is_listed_with_the_iso_rule_it_breaks
     solutions = calculate(1_000_000, 40 * MHZ, sjw=2)
     table = format_table(solutions).splitlines()
     assert "SJW <= min(PS1, PS2) (ISO 11898-1)" in table[0]
-    short_ps1 = [row for s, row in zip(solutions, table[2:]) if s.timing.seg1ph < 2]
+    short_ps1 = [row for s, row in zip(solutions, table[2:], strict=True) if s.timing.seg1ph < 2]
     assert short_ps1 and all(row.endswith("SJW > PS1: breaks ISO 11898-1 (the PIC accepts it)") for row in short_ps1)
-    assert all("ISO" not in row for s, row in zip(solutions, table[2:]) if s.timing.seg1ph >= 2)
+    assert all("ISO" not in row for s, row in zip(solutions, table[2:], strict=True) if s.timing.seg1ph >= 2)
 
 
 def test_calculator_order_is_error_then_sample_point_then_more_tq() -> None:

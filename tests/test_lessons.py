@@ -285,7 +285,7 @@ def classroom_periods() -> dict[str, str]:
 
     def period(sender: str, can_id: int) -> int:
         starts = [e.start_ps for e in room.bus.frames() if e.sender == sender and e.frame.can_id == can_id]
-        return round(sum(b - a for a, b in zip(starts, starts[1:])) / (len(starts) - 1))
+        return round(sum(b - a for a, b in zip(starts, starts[1:], strict=False)) / (len(starts) - 1))
     return {"master": milli(Fraction(period("master", MASTER_ID), PS_PER_SECOND)),
             "station": milli(Fraction(period("station1", 0x100), PS_PER_SECOND))}
 
@@ -299,7 +299,7 @@ def demo1_lines() -> dict[str, object]:
         board = APP023(room.bus, "demo1")
         board.run(load_firmware(path, defines))
         received = bytearray()
-        board.usb.listeners.append(lambda byte, time_ps: received.append(byte))
+        board.usb.listeners.append(lambda byte, time_ps, received=received: received.append(byte))
         room.run(0.3)
         found[name] = next(line for line in received.decode().split("\r\n") if "DLC 5" in line) + "\r\n"
         found["usart"] = board.usart

@@ -145,7 +145,7 @@ def test_ex6_stations_are_silent_unless_polled_and_answer_with_their_ad():
         answers = [i for i, e in enumerate(frames) if e.sender == board.name]
         polls = [i for i, e in enumerate(frames) if e.frame.remote and e.frame.can_id == own]
         assert len(answers) == len(polls) >= 2
-        for answer, poll in zip(answers, polls):
+        for answer, poll in zip(answers, polls, strict=True):
             assert answer == poll + 1, "the answer follows its poll"
             assert frames[answer].frame.can_id == own and not frames[answer].frame.remote
             assert frames[answer].frame.data == payload(board.adc.potentiometer)
