@@ -1,6 +1,7 @@
 """The PIC18F8680's USART in asynchronous mode at register level (TXSTA, RCSTA, SPBRG, TXREG, RCREG, BAUDCON, SPBRGH).
 
-Bytes leave by the TX pin to the serial end the board wires it to, and arrive from it; appsim.firmware.usart (C18's usart.h) drives it.
+Bytes leave by the TX pin to the serial end the board wires it to, and arrive from it; appsim.firmware.usart (C18's
+usart.h) drives it.
 """
 from __future__ import annotations
 
