@@ -82,7 +82,8 @@ def _python_can(config: Config) -> list[Figure]:
         ratios.append(kit[-1] / bare[-1])
     return [Figure("full model / python-can virtual bus, 1 sender -> 6 receivers", "ratio", tuple(ratios),
                    target=0.5, aim=1,
-                   note=f"kit {statistics.median(kit):,.0f} frames/s, python-can {statistics.median(bare):,.0f} frames/s")]
+                   note=f"kit {statistics.median(kit):,.0f} frames/s, "
+                        f"python-can {statistics.median(bare):,.0f} frames/s")]
 
 
 def _busy_wait(config: Config) -> list[Figure]:

@@ -263,7 +263,8 @@ def test_calculator_at_20_mhz_125k_with_sjw_1_lists_examples_9_2_and_9_3() -> No
 def test_calculator_default_sjw_is_the_largest_iso_11898_allows_min_4_ps1_ps2() -> None:
     solutions = calculate(125_000, 20 * MHZ)
     assert all(s.timing.sjw == min(4, s.timing.seg1ph, s.timing.seg2ph) for s in solutions)
-    assert any(s.timing.seg1ph < min(4, s.timing.seg2ph) for s in solutions), "rows where the data sheet alone allows more"
+    assert any(s.timing.seg1ph < min(4, s.timing.seg2ph) for s in solutions), \
+        "rows where the data sheet alone allows more"
     assert all(s.timing.iso_sjw for s in solutions)
 
 

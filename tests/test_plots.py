@@ -1,4 +1,5 @@
-"""The notebooks' pictures show what the kit computes: fields, stuff bits, who wins, segments, frames, load, counters."""
+"""The notebooks' pictures show what the kit computes: fields, stuff bits, who wins, segments, frames, load,
+counters."""
 from __future__ import annotations
 
 import matplotlib

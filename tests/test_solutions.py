@@ -53,7 +53,8 @@ def test_ex2_every_station_sends_its_potentiometer_every_timer1_overflow():
         assert {e.frame.data for e in frames} == {payload(board.adc.potentiometer)}
         starts = [e.start_ps for e in frames]
         gaps = [b - a for a, b in itertools.pairwise(starts)]
-        assert all(abs(gap - TIMER1_PERIOD_PS) < 6 * MS for gap in gaps), "queued on each overflow, sent when the bus is free"
+        assert all(abs(gap - TIMER1_PERIOD_PS) < 6 * MS for gap in gaps), \
+            "queued on each overflow, sent when the bus is free"
         assert abs(sum(gaps) / len(gaps) - TIMER1_PERIOD_PS) < MS // 2
 
 
