@@ -104,7 +104,8 @@ class Session:
                 self._fast(seconds, progress)
                 return
             clock = WallClock(self.sim)
-            for poll in (*pollers, self.report_failures, *([progress] if progress else [])):
+            polls: tuple[Callable[[], None], ...] = (*pollers, self.report_failures, *([progress] if progress else []))
+            for poll in polls:
                 clock.add_poller(poll)
             if self.link is not None:
                 clock.add_poller(self.link.poll)

@@ -96,7 +96,7 @@ class SerialEnd:
         """One 8N1 frame on the line: start bit, 8 data bits, stop bit."""
         return 10 * self.bit_ps()
 
-    def write(self, data: bytes) -> None:
+    def write(self, data: bytes | bytearray) -> None:
         """Send `data` from the PC to the board's RX pin, one 8N1 frame after the other."""
         if not isinstance(data, (bytes, bytearray)):
             raise TypeError(f"{self.place}: write takes bytes (b'...'); got {data!r}")
