@@ -318,7 +318,7 @@ def test_an_output_path_of_the_wrong_kind_is_refused_before_anything_is_graded(t
 @pytest.mark.parametrize("args, words", [
     (["--jobs", "0"], "--jobs is how many exercises are graded at once, a whole number: 1 or more; got 0"),
     (["--jobs", "two"], "--jobs is how many exercises are graded at once, a whole number: 1 or more; got 'two'"),
-    (["--time-limit", "0"], "the time limit is wall-clock seconds, more than 0 and at most 3600 (an hour); got 0"),
+    (["--time-limit", "0"], "the time limit is CPU seconds, more than 0 and at most 3600 (an hour); got 0"),
 ])
 def test_bad_numbers_are_refused_in_words(tmp_path, args, words):
     small_class(tmp_path / "class", ("alice",))

@@ -60,6 +60,7 @@ from appsim.workshop.checks.ex4 import before_the_first_0x088
 from appsim.workshop.checks.trial import TIMER1_PERIOD_PS, payload
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.course import MASTER_ID, solution, starter
+from appsim.workshop.notebook import KNOB_SECONDS, Station
 
 KIT = Path(__file__).resolve().parent.parent
 MS = PS_PER_SECOND // 1000
@@ -118,9 +119,10 @@ def test_ex4_the_notebook_and_the_check_list_the_same_frames_before_the_first_0x
     assert listens.name == check_names("ex4")[1] and listens.passed is keeps_quiet
     if not keeps_quiet:
         assert "ACKed 0x088" in listens.message and "not even the 0x088 it is waiting for" in listens.message
-    notebook = read("ex4")
-    [cell] = [c for c in notebook.cells if "before_the_first_0x088(room.bus, board.name)" in c.source]
-    assert "first_master.start_ps" not in cell.source
+    assert any(c.source == "station.before_the_master()" for c in read("ex4").cells), "the notebook shows the list"
+    shown = Station("ex4", exercise("ex4"), seconds=0.5).before_the_master().events
+    assert shown[0].sender == "master" and shown[0].frame.can_id == MASTER_ID
+    assert (shown == [shown[0]] and board.name not in shown[0].acked_by) is keeps_quiet
 
 
 def test_ex4_waits_for_a_0x088_without_can_rx_invalid_msg():
@@ -347,6 +349,8 @@ COMMON: dict[str, Claim] = {
     "119 m": lambda ns: metres(physical.max_bus_length_metres(CLASSROOM.prseg * CLASSROOM.tq_seconds(FOSC_HZ))),
     "19200 baud": lambda ns: f"{PC_BAUD} baud",
     "BRGCON3 is 0x43": lambda ns: f"BRGCON3 is 0x{initialized_brgcon()[2]:02X}",
+    f"{KNOB_SECONDS:g} s": lambda ns: f"{KNOB_SECONDS:g} s",
+    **{text: lambda ns, text=text: station_run(ns, text) for text in ("0.5 s", "1.0 s")},
     "BRGCON3 = 0x43": lambda ns: f"BRGCON3 = 0x{initialized_brgcon()[2]:02X}",
     **{text: lambda ns, text=text: in_length_tables(text)
        for text in ("40 m", "400 m", "500 m", "1000 m", "1 Mbit/s", "100 kbit/s", "40 kbit/s")},
@@ -418,6 +422,13 @@ RUN = ("01_bit_timing", "ex4")
 VERIFIED: dict[str, set[str]] = {}
 
 
+def station_run(ns: dict, text: str) -> str:
+    """`text` if the notebook's Station runs that long (its `seconds=`), which is what its prose says."""
+    runs = {f"{match} s" for cell in read(ns["__notebook__"]).cells if cell.cell_type == "code"
+            for match in re.findall(r"Station\([^)]*seconds=([0-9.]+)", cell.source)}
+    return text if text in runs else f"the Station runs {sorted(runs)}"
+
+
 def first_frame_of(ns: dict, sender: str):
     return next(e for e in ns["room"].bus.trace if e.sender == sender)
 
@@ -454,7 +465,7 @@ def check_prose(source: str, workdir: Path | None = None) -> None:
         for text in quantities((KIT / "docs" / source).read_text()):
             compare(source, text, {})
         return
-    namespace: dict = {}
+    namespace: dict = {"__notebook__": source}
     deferred: list[str] = []
     for cell in read(source).cells:
         if cell.cell_type == "markdown":

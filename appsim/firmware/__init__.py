@@ -1,6 +1,7 @@
 """What a firmware file imports: `from appsim.firmware import *`, as EX1.C includes CAN18XX8.h and p18f8680.h.
 
 The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit structs (`RXB0CONbits.RXFUL`).
+It acts only through the chip's SFR bus: may import appsim.chip, appsim.can, appsim.sim and appsim.errors.
 """
 from __future__ import annotations
 

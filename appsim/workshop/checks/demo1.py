@@ -9,7 +9,7 @@ from itertools import pairwise
 from appsim.bus.wire import BusEvent
 from appsim.chip.usart import PC_BAUD
 from appsim.sim import PS_PER_SECOND
-from appsim.workshop.checks.trial import Trial, count, listing
+from appsim.workshop.checks.trial import Trial, count, listing, took_part
 from appsim.workshop.checks.verdict import CheckResult
 
 BAUD = "USART at 19200 baud"
@@ -84,14 +84,12 @@ def _baud(trial: Trial, received: bytearray) -> CheckResult:
 
 def _invisible(trial: Trial) -> CheckResult:
     sent = trial.sent()
-    acked = [e for e in trial.bus.trace if trial.name in e.acked_by]
+    acked = trial.acked()
     if sent or acked:
-        seen = (f"sent {listing(sent)}" if sent
-                else f"ACKed {count(len(acked), 'frame')}, the first {listing(acked[:1])}")
-        return CheckResult(INVISIBLE, False, f"The monitor {seen}: in {trial.mode()} mode it takes part in the bus it "
-                                             "watches (a sender alone on the bus would think someone heard it). "
-                                             "CANSetOperationMode(CAN_OP_MODE_LISTEN) after CANInitialize(): it "
-                                             "never ACKs nor flags errors (TODO 2).")
+        return CheckResult(INVISIBLE, False, f"The monitor {took_part(sent, acked)}: in {trial.mode()} mode it takes "
+                                             "part in the bus it watches (a sender alone on the bus would think "
+                                             "someone heard it). CANSetOperationMode(CAN_OP_MODE_LISTEN) after "
+                                             "CANInitialize(): it never ACKs nor flags errors (TODO 2).")
     return CheckResult(INVISIBLE, True, f"No frame sent, no ACK given, in {trial.mode()} mode.")
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from appsim.bus.wire import Bus, BusEvent
 from appsim.workshop.checks.judging import data_frames, why_silent
-from appsim.workshop.checks.trial import MASTER_ID, Trial, count, describe, listing, ms, took
+from appsim.workshop.checks.trial import MASTER_ID, Trial, count, describe, listing, ms, took, took_part
 from appsim.workshop.checks.verdict import CheckResult
 
 LISTENS = "listen-only until the first 0x088"
@@ -40,11 +40,10 @@ def _listens(trial: Trial, first: BusEvent, before: list[BusEvent]) -> CheckResu
     sent = [e for e in before if e.sender == trial.name]
     acked = [e for e in before if trial.name in e.acked_by]
     if sent or acked:
-        seen = f"sent {listing(sent)}" if sent else f"ACKed {listing(acked)}"
         return CheckResult(LISTENS, False, f"Before the master's first 0x088 ended ({ms(first.end_ps)}) your node "
-                                           f"{seen}: it was in Normal mode. A node in Listen-only mode sends nothing "
-                                           "and never ACKs, not even the 0x088 it is waiting for. CANInitialize() "
-                                           "returns in Normal mode, so call CANSetOperationMode(CAN_OP_MODE_LISTEN) "
+                                           f"{took_part(sent, acked)}: it was in Normal mode. A node in Listen-only "
+                                           "mode sends nothing and never ACKs, not even the 0x088 it is waiting for. "
+                                           "CANInitialize() returns in Normal mode, so call CANSetOperationMode(CAN_OP_MODE_LISTEN) "
                                            "after it, with CAN_CONFIG_ALL_MSG (TODO 1, 2).")
     heard = trial.reception(first)
     return CheckResult(LISTENS, True, f"Nothing sent, nothing ACKed until the master's first 0x088 ended at "

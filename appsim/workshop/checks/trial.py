@@ -251,6 +251,10 @@ class Trial:
         """The student's frames on the bus (with the ones that ended in errors unless `ok_only`)."""
         return [e for e in self.bus.trace if e.sender == self.name and (e.ok or not ok_only)]
 
+    def acked(self) -> list[BusEvent]:
+        """The frames on the bus the student's node ACKed (a node in Normal mode ACKs every correct frame)."""
+        return [e for e in self.bus.trace if self.name in e.acked_by]
+
     def reception(self, event: BusEvent) -> str:
         """What the student's acceptance logic did with a frame ("" if the node did not take part)."""
         return dict(event.received).get(self.name, "")
@@ -280,6 +284,11 @@ def sid(ecan: ECAN, register: str) -> int:
 def took(reception: str) -> bool:
     """The acceptance logic put the frame in a receive buffer."""
     return reception.startswith("RXB")
+
+
+def took_part(sent: list[BusEvent], acked: list[BusEvent]) -> str:
+    """What a node that was to keep off the bus did there: `sent ...`, else `ACKed ...`."""
+    return f"sent {listing(sent)}" if sent else f"ACKed {listing(acked)}"
 
 
 def listing(events: Iterable[BusEvent], limit: int = 3) -> str:
