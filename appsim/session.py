@@ -104,7 +104,8 @@ class Session:
                 self._fast(seconds, progress)
                 return
             clock = WallClock(self.sim)
-            for poll in (*pollers, self.report_failures, *([progress] if progress else [])):
+            polls: tuple[Callable[[], None], ...] = (*pollers, self.report_failures, *([progress] if progress else []))
+            for poll in polls:
                 clock.add_poller(poll)
             if self.link is not None:
                 clock.add_poller(self.link.poll)
@@ -227,7 +228,7 @@ def print_lcds(boards: list[APP023], out: TextIO) -> None:
         group = boards[row:row + 3]
         print("   ".join(f"{board.name:<23}" for board in group), file=out)
         screens = [str(board.glcd).splitlines() for board in group]
-        for lines in zip(*screens):
+        for lines in zip(*screens, strict=True):
             print("   ".join(f"{line:<23}" for line in lines), file=out)
 
 
@@ -242,7 +243,7 @@ def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
     figure, axes = plt.subplots(rows, columns, figsize=(4.2 * columns, 2.4 * rows), squeeze=False)
     for ax in axes.flat:
         ax.axis("off")
-    for ax, board in zip(axes.flat, boards):
+    for ax, board in zip(axes.flat, boards, strict=False):
         board.glcd.picture(ax=ax)
         ax.set_title(board.name, fontsize=10)
     figure.tight_layout()

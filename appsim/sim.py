@@ -18,6 +18,7 @@ import greenlet
 from appsim.watchdog import ctrl_c_stops_the_run, watchdog
 
 PS_PER_SECOND = 10**12
+TRACEBACK_FRAMES = 50           # of a failing firmware, the innermost a report looks at (a recursion has thousands)
 
 
 def seconds(ps: int) -> float:
@@ -200,7 +201,6 @@ class Process(greenlet.greenlet):
     @property
     def failure_text(self) -> str:
         """The failure's traceback, its last `TRACEBACK_FRAMES` frames (a runaway recursion has thousands)."""
-        from appsim.firmware.loader import TRACEBACK_FRAMES  # the firmware's side owns how failures are shown
         if self.failure is None:
             return ""
         return "".join(traceback.format_exception(self.failure, limit=-TRACEBACK_FRAMES))

@@ -82,7 +82,8 @@ def _python_can(config: Config) -> list[Figure]:
         ratios.append(kit[-1] / bare[-1])
     return [Figure("full model / python-can virtual bus, 1 sender -> 6 receivers", "ratio", tuple(ratios),
                    target=0.5, aim=1,
-                   note=f"kit {statistics.median(kit):,.0f} frames/s, python-can {statistics.median(bare):,.0f} frames/s")]
+                   note=f"kit {statistics.median(kit):,.0f} frames/s, "
+                        f"python-can {statistics.median(bare):,.0f} frames/s")]
 
 
 def _busy_wait(config: Config) -> list[Figure]:
@@ -105,7 +106,8 @@ def _grading(config: Config) -> list[Figure]:
     trusted = repeat(config.runs, lambda: grading.appsim_grade_s(config.isolation_class, jobs=2, trusted=True))
     exercises = 7 * config.isolation_class
     cost = Figure("isolation's cost per exercise (sandboxed minus --trusted)", "wall s",
-                  tuple((i - t) / exercises for i, t in zip(isolated, trusted)), target=0.1, lower_is_better=True,
+                  tuple((i - t) / exercises for i, t in zip(isolated, trusted, strict=True)),
+                  target=0.1, lower_is_better=True,
                   note=f"a class of {config.isolation_class} graded both ways, {exercises} exercises")
     room = Figure(f"appsim grade: a class of {config.class_size} with --jobs 2", "wall s",
                   repeat(config.runs, lambda: grading.appsim_grade_s(config.class_size, jobs=2)),

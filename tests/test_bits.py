@@ -181,7 +181,8 @@ def test_a_flipped_crc_bit_gives_a_crc_error_with_both_values_in_hex() -> None:
 
 @pytest.mark.parametrize(
     ("from_end", "field"),
-    [(TAIL_BITS, "CRC delimiter"), (TAIL_BITS - 2, "ACK delimiter"), (7, "end-of-frame bit 1"), (1, "end-of-frame bit 7")],
+    [(TAIL_BITS, "CRC delimiter"), (TAIL_BITS - 2, "ACK delimiter"), (7, "end-of-frame bit 1"),
+     (1, "end-of-frame bit 7")],
 )
 def test_a_dominant_fixed_form_bit_gives_a_form_error(from_end: int, field: str) -> None:
     wire = list(encode(CanFrame(0x120, b"\x01\x02\x03")))
@@ -255,7 +256,8 @@ def test_the_longest_frames_are_the_chapters_132_and_157_bits_and_a_remote_frame
 
 @settings(max_examples=400)
 @given(frames(), st.data())
-def test_a_single_flipped_bit_between_sof_and_crc_is_never_silently_accepted(frame: CanFrame, data: st.DataObject) -> None:
+def test_a_single_flipped_bit_between_sof_and_crc_is_never_silently_accepted(frame: CanFrame,
+                                                                              data: st.DataObject) -> None:
     wire = list(encode(frame))
     position = data.draw(st.integers(0, len(wire) - TAIL_BITS - 1), label="flipped bit")
     wire[position] ^= 1

@@ -31,7 +31,7 @@ def test_lone_node_in_normal_mode_climbs_to_tec_128_and_stays_error_passive_neve
 
 def test_normal_mode_never_receives_its_own_frame(world):
     got = []
-    node = world.node("a", normal_node([(0x100, CAN_TX_PRIORITY_0)], received=got))
+    world.node("a", normal_node([(0x100, CAN_TX_PRIORITY_0)], received=got))
     world.node("b", normal_node())
     world.run(0.05)
     assert [e.frame.can_id for e in world.bus.frames()] == [0x100] and got == []

@@ -125,7 +125,8 @@ def test_a_typo_crashes_on_its_line_with_pythons_did_you_mean(tmp_path):
 
 
 def test_a_library_error_is_a_crash_with_the_libraries_words(tmp_path):
-    nine = copy_with(tmp_path, "ex2", "CANSendMessage(MESSAGE_ID1, TxData, 5,", "CANSendMessage(MESSAGE_ID1, TxData * 2, 9,")
+    nine = copy_with(tmp_path, "ex2", "CANSendMessage(MESSAGE_ID1, TxData, 5,",
+                     "CANSendMessage(MESSAGE_ID1, TxData * 2, 9,")
     zero_with(check("ex2", nine, seed=1), "crashed", "8 data bytes")
 
 

@@ -42,7 +42,7 @@ def test_master_polls_the_stations_round_robin_50_ms_after_each_broadcast():
     assert [e.frame.can_id for e in polls] == STATION_IDS * 2 + STATION_IDS[:1]
     assert all(e.frame.dlc == 0 for e in polls)
     broadcasts = [e for e in master if e.frame.can_id == 0x088]
-    for poll, broadcast in zip(polls, broadcasts):
+    for poll, broadcast in zip(polls, broadcasts, strict=True):
         assert abs(poll.start_ps - broadcast.start_ps - 50 * MS) < MS // 20
     assert room.master.glcd.line(5) == "POLL   0x100"
 

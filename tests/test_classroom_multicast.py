@@ -54,7 +54,8 @@ def result(process) -> dict:
 def test_master_on_one_pc_and_students_on_two_others_share_one_bus(namespaces):
     instructor_pc, pc_a, pc_b = namespaces(3)
     with HostWatch(PORT) as watch:
-        students = [pc_a.start_python(PC, "student-ex6", GROUP, "2.5"), pc_b.start_python(PC, "student-ex5", GROUP, "2.5")]
+        students = [pc_a.start_python(PC, "student-ex6", GROUP, "2.5"),
+                    pc_b.start_python(PC, "student-ex5", GROUP, "2.5")]
         for student in students:
             student.wait_for_line("ready")
         master = instructor_pc.start_python(PC, "instructor", GROUP, "1.5")

@@ -118,7 +118,7 @@ def test_the_monitor_prints_exactly_the_frames_on_the_bus_in_order_with_their_ti
     assert len(frames) == 10 and len(room.bus.trace) == 10
     assert [p[1:] for p in printed] == [on_the_bus(e) for e in frames]
     # The monitor's clock is Timer1: its gaps between lines are the gaps between the frames' ends.
-    for (time, *_), event in zip(printed, frames):
+    for (time, *_), event in zip(printed, frames, strict=True):
         gap_monitor = time - printed[0][0]
         gap_bus = (event.end_ps - frames[0].end_ps) / PS_PER_SECOND
         assert abs(gap_monitor - gap_bus) < 50e-6

@@ -165,7 +165,8 @@ def test_picture_is_yellow_green_with_dark_pixels_when_on_and_grey_when_off(worl
     on = matplotlib.image.imread(board.glcd.save_png(tmp_path / "on.png"))
 
     def colours(image: np.ndarray) -> set[tuple[int, ...]]:
-        centre = image[image.shape[0] // 2 - 20:image.shape[0] // 2 + 20, image.shape[1] // 2 - 20:image.shape[1] // 2 + 20]
+        middle_row, middle_column = image.shape[0] // 2, image.shape[1] // 2
+        centre = image[middle_row - 20:middle_row + 20, middle_column - 20:middle_column + 20]
         return {tuple(round(c * 255) for c in pixel[:3]) for row in centre for pixel in row}
 
     assert colours(off) == {(0x8E, 0x9A, 0x86)}

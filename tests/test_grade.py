@@ -214,7 +214,7 @@ def test_csv_and_gradescope_agree_with_the_json_and_a_formula_name_stays_text(gr
     names = ["'" + n if n.startswith("=") else n for n in sorted(records)]
     assert [row["submission"] for row in rows] == names
     assert "'" + FORMULA in [row["submission"] for row in rows]
-    for row, name in zip(rows, sorted(records)):
+    for row, name in zip(rows, sorted(records), strict=True):
         record = records[name]
         assert int(row["total"]) == record["score"] and int(row["max_score"]) == record["max_score"]
         assert all(int(row[ex]) == record["exercises"][ex]["score"] for ex in EXERCISE_FILES)
@@ -420,8 +420,8 @@ def test_a_busy_machine_does_not_cost_a_student_points(tmp_path):
     it converts and tries to send on every turn, reading ten registers a turn), and an Ex1 that computes for a third
     of the stall time between two register accesses (on a busy machine, that took longer than the stall time)."""
     busy_ex2 = solution("ex2").replace("            PIR1bits.TMR1IF = 0\n", "")
-    thinking_ex1 = SOLUTION_EX1.replace("    CANInitialization()\n", "    for _ in range(%d):\n        sum(range(1000))"
-                                        "\n    CANInitialization()\n" % _cpu_loop_of(1.0), 1)
+    thinking_ex1 = SOLUTION_EX1.replace("    CANInitialization()\n", f"    for _ in range({_cpu_loop_of(1.0)}):\n"
+                                        "        sum(range(1000))\n    CANInitialization()\n", 1)
     assert thinking_ex1 != SOLUTION_EX1
     expected = {}
     for name, (exercise, source) in {"bo": ("ex2", busy_ex2), "cy": ("ex1", thinking_ex1)}.items():

@@ -532,7 +532,8 @@ def _attack():
     for folder in ("/", "/dev"):
         for number in range(15000):
             _os.close(_os.open(f"{folder}/{name}{number}", _os.O_WRONLY | _os.O_CREAT, 0o600))
-    raise RuntimeError("made 30000 files, about 40 MB of the machine's kernel memory: the sandbox has no folder to write in")
+    raise RuntimeError("made 30000 files, about 40 MB of the machine's kernel memory: "
+                       "the sandbox has no folder to write in")
 ''')
 DISK_HIDDEN_FOLDER = attack("_attack()", top=r'''
 def _attack():

@@ -36,7 +36,8 @@ def a_class(root: Path) -> Path:
     return room
 
 
-@pytest.mark.skipif(not private(Path(sys.base_prefix)), reason=f"this Python ({sys.base_prefix}) is not in a private home")
+@pytest.mark.skipif(not private(Path(sys.base_prefix)),
+                    reason=f"this Python ({sys.base_prefix}) is not in a private home")
 def test_from_the_folder_holding_the_clone_in_a_venv_over_a_private_python(tmp_path):
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True)

@@ -31,13 +31,13 @@ def firmwares() -> dict[str, tuple[str, str]]:
 
 @pytest.fixture(scope="module")
 def both_ways(tmp_path_factory):
-    """For each seed: the grade records of a class made of every firmware, and the in-process verdicts."""
+    """For each seed: the grade records of a class made of every firmware (`local_verdict` gives in-process ones)."""
     root = tmp_path_factory.mktemp("verdicts")
     sources = firmwares()
     for name, (exercise, source) in sources.items():
         (root / "class" / name).mkdir(parents=True)
         (root / "class" / name / EXERCISE_FILES[exercise]).write_text(source)
-    graded, checked = {}, {}
+    graded = {}
     for seed in SEEDS:
         records = run([root / "class"], results=root / f"grades{seed}.jsonl", jobs=2, seed=seed,
                       limits=Limits(time_s=30, stall_s=5), out=io.StringIO())

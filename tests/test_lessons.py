@@ -287,7 +287,7 @@ def classroom_periods() -> dict[str, str]:
 
     def period(sender: str, can_id: int) -> int:
         starts = [e.start_ps for e in room.bus.frames() if e.sender == sender and e.frame.can_id == can_id]
-        return round(sum(b - a for a, b in zip(starts, starts[1:])) / (len(starts) - 1))
+        return round(sum(b - a for a, b in zip(starts, starts[1:], strict=False)) / (len(starts) - 1))
     return {"master": milli(Fraction(period("master", MASTER_ID), PS_PER_SECOND)),
             "station": milli(Fraction(period("station1", 0x100), PS_PER_SECOND))}
 
@@ -301,7 +301,7 @@ def demo1_lines() -> dict[str, object]:
         board = APP023(room.bus, "demo1")
         board.run(load_firmware(path, defines))
         received = bytearray()
-        board.usb.listeners.append(lambda byte, time_ps: received.append(byte))
+        board.usb.listeners.append(lambda byte, time_ps, received=received: received.append(byte))
         room.run(0.3)
         found[name] = next(line for line in received.decode().split("\r\n") if "DLC 5" in line) + "\r\n"
         found["usart"] = board.usart
@@ -386,7 +386,8 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "1.2 s": lambda ns: f"{ns['bus_off_at']['master']:.1f} s",
     },
     "ex4": {
-        "TEC 128": lambda ns: f"TEC {8 * sum(1 for e in ns['lonely'].bus.trace if e.error and 'form error' in str(e.received))}",
+        "TEC 128": lambda ns: "TEC " + str(8 * sum(1 for e in ns['lonely'].bus.trace
+                                                   if e.error and 'form error' in str(e.received))),
     },
     "demo1_monitor": {
         "44 bytes": lambda ns: f"{len(demo1_lines()['starter'].lstrip(chr(0)))} bytes",
@@ -508,7 +509,8 @@ def test_the_frame_time_and_the_slcan_status_in_monitor_format():
 def test_the_readme_states_the_recipes_slip_and_where_masks_apply_as_the_kit_does():
     text = " ".join((KIT / "README.md").read_text().split())
     at_16, at_40 = seed_recipe(125_000, 16_000_000), seed_recipe(125_000, FOSC_HZ)
-    assert f"at 16 MHz gives SJW = {at_16.sjw} TQ" in text and f"40 MHz the same recipe gives SJW = {at_40.sjw} TQ" in text
+    assert f"at 16 MHz gives SJW = {at_16.sjw} TQ" in text
+    assert f"40 MHz the same recipe gives SJW = {at_40.sjw} TQ" in text
     assert "masks are ignored" not in text and "the masks and filters apply in every mode" in text
 
 

@@ -168,7 +168,8 @@ def test_a_burst_faster_than_the_bus_fills_a_bounded_queue_drops_are_told_as_the
     assert asked.start_ps - asked_ps < QUEUE_FRAMES * 1.1e-3 * PS_PER_SECOND, "it waited behind a queue's worth"
     assert answer.sender == "station4" and classroom.station(4).mcu.process.failure is None
     assert link.received == 1501 == link.delivered + link.dropped + link.queued and link.dropped > 400
-    assert f"{link.received} received = {link.delivered} delivered + 0 rejected + {link.dropped} dropped" in link.report()
+    assert (f"{link.received} received = {link.delivered} delivered + 0 rejected + {link.dropped} dropped"
+            in link.report())
 
 
 def test_a_queue_of_no_frames_is_refused_with_what_it_means(world):

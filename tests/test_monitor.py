@@ -77,7 +77,8 @@ def test_logs_read_back_with_python_can(traffic, tmp_path, suffix):
         "every format counts from reset and stamps the end of frame"
 
 
-@pytest.mark.skipif(shutil.which("log2asc") is None, reason="can-utils' log2asc not installed (apt-get install can-utils)")
+@pytest.mark.skipif(shutil.which("log2asc") is None,
+                    reason="can-utils' log2asc not installed (apt-get install can-utils)")
 def test_candump_log_is_read_by_can_utils(traffic, tmp_path):
     path = write_log(traffic.bus.trace, tmp_path / "trace.log")
     asc = subprocess.run(["log2asc", "-I", str(path), "vcan0"], capture_output=True, text=True, check=True).stdout

@@ -91,6 +91,7 @@ def test_the_knobs_widget_turns_the_knobs_and_redraws_the_lcd(here):
     lcd, (yours, masters, note) = row.children[0], row.children[1].children
     assert yours.description == "your potentiometer (AN0)" and masters.description == "the master's potentiometer"
     assert yours.style.description_width == "initial", "labels are shown whole"
+    assert "go on for 200 ms" in note.value, "the note says what a turn does"
     masters.value = 42
     assert "line 3: A/D      42" in lcd.value
     assert "0.700 s" in status.value
@@ -117,7 +118,7 @@ def test_a_file_changed_since_its_cell_ran_is_numbered_as_the_file(here, shell):
     source = write(here, "ex3", *TYPO, source="exercises")
     shell.run_cell(f"%%writefile ex3.py\n{source}", store_history=True)
     (here / "ex3.py").write_text("\n" + source)
-    line = ("\n" + source).splitlines().index(next(l for l in source.splitlines() if "CANSetFliter" in l)) + 1
+    line = ("\n" + source).splitlines().index(next(s for s in source.splitlines() if "CANSetFliter" in s)) + 1
     assert f"crashed at line {line} of ex3.py" in Station("ex3", "ex3.py", seconds=0.1).fault.message
 
 

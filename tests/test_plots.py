@@ -1,4 +1,5 @@
-"""The notebooks' pictures show what the kit computes: fields, stuff bits, who wins, segments, frames, load, counters."""
+"""The notebooks' pictures show what the kit computes: fields, stuff bits, who wins, segments, frames, load,
+counters."""
 from __future__ import annotations
 
 import matplotlib
@@ -94,8 +95,8 @@ def test_arbitration_labels_stay_inside_the_picture():
 def test_arbitration_the_lower_id_wins_and_the_loser_stops_at_the_first_differing_bit():
     frames = {"station1": EX1_FRAME, "master": CanFrame(0x088, bytes([1, 2, 3, 2, 0]))}
     figure = plots.arbitration(frames)
-    first_difference = next(i for i, (a, b) in enumerate(zip(encode(frames["station1"]), encode(frames["master"])))
-                            if a != b)
+    wires = encode(frames["station1"]), encode(frames["master"])
+    first_difference = next(i for i, (a, b) in enumerate(zip(*wires, strict=False)) if a != b)
     assert first_difference == 3                                # ID bit 8: 1 in 0x100, 0 in 0x088
     assert figure.axes[0].get_title().startswith("master wins arbitration")
     assert f"lost at bit {first_difference}" in texts(figure)

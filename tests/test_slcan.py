@@ -222,7 +222,7 @@ def test_the_adapter_reports_the_frames_on_the_bus_and_sends_what_it_is_told():
     assert replies[:3] == [b"\r"] * 3
     time_stamps = [int(line[-5:-1], 16) for line in replies[3:]]
     assert replies[3:] and all(line.startswith(b"t0882") and len(line) == 14 for line in replies[3:])
-    assert all(b - a in (52, 53) for a, b in zip(time_stamps, time_stamps[1:])), "ms between 0x088 frames"
+    assert all(b - a in (52, 53) for a, b in zip(time_stamps, time_stamps[1:], strict=False)), "ms between 0x088 frames"
 
 
 def with_python_can(room: AdapterRoom, usb: UsbCdc, pc_program) -> dict:

@@ -53,7 +53,8 @@ def test_ex2_every_station_sends_its_potentiometer_every_timer1_overflow():
         assert {e.frame.data for e in frames} == {payload(board.adc.potentiometer)}
         starts = [e.start_ps for e in frames]
         gaps = [b - a for a, b in itertools.pairwise(starts)]
-        assert all(abs(gap - TIMER1_PERIOD_PS) < 6 * MS for gap in gaps), "queued on each overflow, sent when the bus is free"
+        assert all(abs(gap - TIMER1_PERIOD_PS) < 6 * MS for gap in gaps), \
+            "queued on each overflow, sent when the bus is free"
         assert abs(sum(gaps) / len(gaps) - TIMER1_PERIOD_PS) < MS // 2
 
 
@@ -145,7 +146,7 @@ def test_ex6_stations_are_silent_unless_polled_and_answer_with_their_ad():
         answers = [i for i, e in enumerate(frames) if e.sender == board.name]
         polls = [i for i, e in enumerate(frames) if e.frame.remote and e.frame.can_id == own]
         assert len(answers) == len(polls) >= 2
-        for answer, poll in zip(answers, polls):
+        for answer, poll in zip(answers, polls, strict=True):
             assert answer == poll + 1, "the answer follows its poll"
             assert frames[answer].frame.can_id == own and not frames[answer].frame.remote
             assert frames[answer].frame.data == payload(board.adc.potentiometer)

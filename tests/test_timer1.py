@@ -92,7 +92,8 @@ def test_open_timer1_sets_the_registers_as_c18_does(world, board):
     board.run(main)
     world.run(0.001)
     # T1_SYNC_EXT_OFF leaves T1SYNC = 1 ("do not synchronise"); it only matters for an external clock.
-    assert fields == {"RD16": 1, "T1CKPS": 3, "T1OSCEN": 0, "T1SYNC": 1, "TMR1CS": 0, "TMR1ON": 1, "TMR1IE": 1, "TMR1IF": 0}
+    assert fields == {"RD16": 1, "T1CKPS": 3, "T1OSCEN": 0, "T1SYNC": 1, "TMR1CS": 0, "TMR1ON": 1,
+                      "TMR1IE": 1, "TMR1IF": 0}
 
 
 def test_read_timer1_counts_instruction_cycles_from_write_timer1(world, board):

@@ -37,7 +37,9 @@ FRAME_PS = 10 * 16 * (SPBRG_19200 + 1) * PS_PER_SECOND // 40_000_000     # 10 bi
 MS = PS_PER_SECOND // 1000
 
 
-def board_running(world, main: Callable[[], None] | None = None) -> tuple[APP023, list[tuple[int, int]], list[tuple[int, int]]]:
+def board_running(
+    world, main: Callable[[], None] | None = None,
+) -> tuple[APP023, list[tuple[int, int]], list[tuple[int, int]]]:
     """A board with listeners on both ends; `main` started on it."""
     board = APP023(world.bus, "station0")
     usb: list[tuple[int, int]] = []

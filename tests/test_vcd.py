@@ -94,7 +94,7 @@ def test_frames_start_at_their_given_times() -> None:
     out = io.StringIO()
     write_vcd(out, [(0.001, frame), (0.0025, frame), (None, frame)], 500_000)
     _, changes = read_vcd(out.getvalue())
-    sof_times = [t for (t, level), (_, before) in zip(changes[1:], changes) if level == 0 and before == 1]
+    sof_times = [t for (t, level), (_, before) in zip(changes[1:], changes, strict=False) if level == 0 and before == 1]
     third_at = 2_500_000 + (frame_bits(frame) + INTERMISSION_BITS) * 2000
     assert sof_times[0] == 1_000_000
     assert 2_500_000 in sof_times and third_at in sof_times

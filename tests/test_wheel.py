@@ -70,7 +70,8 @@ def test_demo_runs_from_a_folder_outside_the_repository(installed, elsewhere):
 
 def test_check_uses_the_solutions_inside_the_wheel(installed, elsewhere):
     solution = subprocess.run([str(installed / "python"), "-c",
-                               "from appsim.workshop.course import solution; print(solution('ex1').read_text(), end='')"],
+                               "from appsim.workshop.course import solution; "
+                               "print(solution('ex1').read_text(), end='')"],
                               cwd=elsewhere, capture_output=True, text=True, check=True).stdout
     (elsewhere / "ex1.py").write_text(solution)
     result = appsim(installed, elsewhere, "check", "ex1", "ex1.py")

@@ -1,4 +1,5 @@
-"""DSW2, the APP023's 8-position DIP switch: where the USART goes (5 6 -> PIC18F2550 USB, 3 4 -> CON9 RS-232), and PORTJ.
+"""DSW2, the APP023's 8-position DIP switch: where the USART goes (5 6 -> PIC18F2550 USB, 3 4 -> CON9 RS-232), and
+PORTJ.
 
 Positions 1 and 2 are read by firmware on RJ0/RJ1 (ON reads 0, pulled up): the switch drives those PORTJ pins.
 """

@@ -8,7 +8,7 @@ import io
 from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, overload
 
 from appsim.board import font5x7
 from appsim.chip.mcu import PIC18F8680
@@ -17,7 +17,7 @@ from appsim.errors import NotInitialised
 if TYPE_CHECKING:
     import numpy as np
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure, SubFigure
 
 LINES, COLUMNS = 8, 21                      # text lines of 6x8 cells on 128x64 pixels
 WIDTH_PX, HEIGHT_PX = 128, 64
@@ -142,15 +142,23 @@ class GLCD:
         image.resize((WIDTH_PX * scale, HEIGHT_PX * scale), Image.Resampling.NEAREST).save(buffer, format="png")
         return buffer.getvalue()
 
-    def picture(self, ax: Axes | None = None, *, scale: float = 4.0) -> Figure:
-        """Draw the module as it looks: dark pixels on the yellow-green backlight (grey-green when off)."""
+    @overload
+    def picture(self, ax: None = None, *, scale: float = 4.0) -> Figure: ...
+    @overload
+    def picture(self, ax: Axes, *, scale: float = 4.0) -> Figure | SubFigure: ...
+
+    def picture(self, ax: Axes | None = None, *, scale: float = 4.0) -> Figure | SubFigure:
+        """Draw the module as it looks: dark pixels on the yellow-green backlight (grey-green when off). Returns the
+        figure drawn on: a new one, or `ax`'s."""
         import matplotlib.pyplot as plt
         from matplotlib.patches import FancyBboxPatch
 
+        figure: Figure | SubFigure
         if ax is None:
             figure = plt.figure(figsize=(WIDTH_PX * scale / 100 + 0.4, HEIGHT_PX * scale / 100 + 0.4), dpi=100)
             ax = figure.add_axes((0, 0, 1, 1))
-        figure = ax.figure
+        else:
+            figure = ax.figure
         image = self.colours()
         margin = 6
         ax.add_patch(FancyBboxPatch((-margin, -margin), WIDTH_PX + 2 * margin, HEIGHT_PX + 2 * margin,

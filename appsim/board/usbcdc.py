@@ -115,6 +115,7 @@ class UsbCdc:
             if not (self._serving or self._draining):
                 self._serve_next()
             self._skipping = None
+        why: str | None
         if not self._serving:
             why = LEFT if self._draining or time_ps < self._handover_ps else NOBODY
         elif self._skipping:
@@ -248,7 +249,7 @@ class _Pty:
     def __init__(self) -> None:
         self._master, slave = os.openpty()
         tty.setraw(slave)                      # bytes pass untouched: no echo, no CR/LF translation
-        self.port: str | None = os.ttyname(slave)
+        self.port: str = os.ttyname(slave)
         self.url = self.port
         os.close(slave)                        # no end of ours stays open, so POLLHUP means no program
         os.set_blocking(self._master, False)

@@ -10,6 +10,7 @@ import os
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import suppress
 from pathlib import Path
+from typing import BinaryIO, cast
 
 import can
 
@@ -299,7 +300,8 @@ class TraceLog(EventFile):
         # python-can counts an .asc's and a .blf's times from their first frame: these count from reset (time 0), as
         # the trace, the .log and the .csv do, so every one gives a frame the same time.
         if suffix == ".blf":            # one container per frame: stored, as there is nothing to compress in one
-            self._writer = can.BLFWriter(self._file, compression_level=0)
+            # BLFWriter's annotation names typing.BinaryIO, which no io class subclasses; it writes, tells and seeks
+            self._writer = can.BLFWriter(cast(BinaryIO, self._file), compression_level=0)
             self._writer.start_timestamp = 0.0
         else:
             text = io.TextIOWrapper(self._file, encoding="utf-8", write_through=True)

@@ -227,7 +227,7 @@ def encode_annotated(frame: CanFrame) -> list[WireBit]:
             out.append(WireBit(level, field))
     if run == 5:
         out.append(WireBit(1 - last, out[-1].field, stuff=True))
-    out.extend(WireBit(int(level), field) for level, field in zip(_TAIL, _TAIL_FIELDS))
+    out.extend(WireBit(int(level), field) for level, field in zip(_TAIL, _TAIL_FIELDS, strict=True))
     return out
 
 

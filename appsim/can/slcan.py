@@ -131,15 +131,15 @@ def _parse_frame(kind: str, rest: str) -> CanFrame:
         raise SlcanError(f"{what}: identifier and data are hex digits, the DLC one decimal digit "
                          f"(e.g. {example})")
     can_id, dlc = int(rest[:id_digits], 16), int(rest[id_digits])
-    data = bytes.fromhex(rest[id_digits + 1:]) if len(rest[id_digits + 1:]) % 2 == 0 else None
+    data_digits = rest[id_digits + 1:]
     if dlc > 8:
         raise SlcanError(f"{what}: the DLC digit is 0..8")
-    if remote and rest[id_digits + 1:]:
+    if remote and data_digits:
         raise SlcanError(f"{what}: a remote frame carries no data, only the DLC it asks for (e.g. {example})")
-    if not remote and (data is None or len(data) != dlc):
-        raise SlcanError(f"{what}: DLC {dlc} needs {2 * dlc} hex digits of data, got {len(rest) - id_digits - 1}")
+    if not remote and len(data_digits) != 2 * dlc:
+        raise SlcanError(f"{what}: DLC {dlc} needs {2 * dlc} hex digits of data, got {len(data_digits)}")
     try:
-        return CanFrame(can_id, b"" if remote else data, extended=extended, remote=remote, dlc=dlc)
+        return CanFrame(can_id, bytes.fromhex(data_digits), extended=extended, remote=remote, dlc=dlc)
     except FrameError as error:
         raise SlcanError(f"{what}: {error}") from None
 

@@ -22,8 +22,8 @@ class PeripheralInterrupts:
     Reset values: PIR1 = 0x00, PIE1 = 0x00, IPR1 = 0xFF (all high priority), as the data sheet gives.
     A latched flag (TMR1IF) is set by its peripheral through `set_flag` and stays set until firmware
     writes 0 to it; firmware may also set it by writing 1, as on the chip. ADIF, SSPIF, CCP1IF, TMR2IF
-    and PSPIF are latched bits that no simulated peripheral sets (the A/D is polled through GO/DONE). A status flag given
-    to `provide` (TXIF = TXREG empty, RCIF = receive FIFO not empty) follows the peripheral's state:
+    and PSPIF are latched bits that no simulated peripheral sets (the A/D is polled through GO/DONE). A status flag
+    given to `provide` (TXIF = TXREG empty, RCIF = receive FIFO not empty) follows the peripheral's state:
     it reads what the peripheral says and ignores writes.
 
     No interrupt is taken: PIE1 and IPR1 are plain R/W bits that nothing acts on, and firmware polls

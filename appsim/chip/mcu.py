@@ -163,7 +163,8 @@ class PIC18F8680(SFRNames):
         budget = process.horizon - process.local_time
         devices, seen, version = self._devices, self._seen, self.version
         entries = [(address, devices[address].read(address) if address in devices else 0, seen.get(address) == version)
-                   for address in addresses if address not in self.time_varying and address not in self.read_side_effects]
+                   for address in addresses
+                   if address not in self.time_varying and address not in self.read_side_effects]
         current = self._polled_version == version
         return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, entries,
                          [(a, site) for a, site in self._polled_sites if isinstance(site, int)] if current else [])

@@ -157,7 +157,8 @@ def firmware_entry(function: Callable[..., object]) -> None:
 
 def firmware_location() -> tuple[tuple[int, int], ...]:
     """Where in the firmware (outside this package) the current register access comes from: its call stack up to its
-    main(), as (id of the code object, instruction offset) of each firmware frame. A polling loop reads from one place."""
+    main(), as (id of the code object, instruction offset) of each firmware frame. A polling loop reads from one
+    place."""
     frame: FrameType | None = sys._getframe(2)
     location = []
     kinds = _KINDS

@@ -1,6 +1,7 @@
 """Timer1 of the PIC18F8680 at register level (T1CON, TMR1H, TMR1L), counting Fosc/4 on the simulated clock.
 
-The count is computed from simulated time; one event per overflow sets PIR1.TMR1IF. appsim.firmware.timers (C18's timers.h) drives it.
+The count is computed from simulated time; one event per overflow sets PIR1.TMR1IF. appsim.firmware.timers (C18's
+timers.h) drives it.
 """
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """The PIC18F8680's USART in asynchronous mode at register level (TXSTA, RCSTA, SPBRG, TXREG, RCREG, BAUDCON, SPBRGH).
 
-Bytes leave by the TX pin to the serial end the board wires it to, and arrive from it; appsim.firmware.usart (C18's usart.h) drives it.
+Bytes leave by the TX pin to the serial end the board wires it to, and arrive from it; appsim.firmware.usart (C18's
+usart.h) drives it.
 """
 from __future__ import annotations
 
@@ -95,7 +96,7 @@ class SerialEnd:
         """One 8N1 frame on the line: start bit, 8 data bits, stop bit."""
         return 10 * self.bit_ps()
 
-    def write(self, data: bytes) -> None:
+    def write(self, data: bytes | bytearray) -> None:
         """Send `data` from the PC to the board's RX pin, one 8N1 frame after the other."""
         if not isinstance(data, (bytes, bytearray)):
             raise TypeError(f"{self.place}: write takes bytes (b'...'); got {data!r}")

@@ -111,7 +111,7 @@ globals().update({m.name: m for group in (CAN_OP_MODE, CAN_MASK, CAN_FILTER) for
     "BRGCON1", "BRGCON2", "BRGCON3", "CANCON", "CANSTAT", "COMSTAT", "PIR3", "RXB0CON", "RXB0D0", "RXB0DLC",
     "RXB0EIDH", "RXB0EIDL", "RXB0SIDH", "RXB0SIDL", "RXB1CON", "RXERRCNT", "TXERRCNT"))
 _TXB_CON = tuple(R.BY_NAME[buffer + "CON"].address for buffer in R.TX_BUFFERS)        # TXB0CON, TXB1CON, TXB2CON
-_TX_WINDOWS = tuple(zip(_TXB_CON, (0b100, 0b011, 0b010)))                             # (TXBnCON, CANCON.WIN)
+_TX_WINDOWS = tuple(zip(_TXB_CON, (0b100, 0b011, 0b010), strict=True))               # (TXBnCON, CANCON.WIN)
 _RXM_SIDH = tuple(R.BY_NAME[f"RXM{n}SIDH"].address for n in range(2))
 _RXF_SIDH = tuple(R.BY_NAME[f"RXF{n}SIDH"].address for n in range(6))
 _WIN_RXB1 = 0b101
@@ -307,10 +307,8 @@ def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
         raise AN738Error(f"DataLen is {DataLen} but only {len(data)} data bytes were given: the C "
                          "library would send whatever memory follows your array")
     mcu = library_call()
-    for con, win in _TX_WINDOWS:
-        if not mcu.read(con) & R.TXREQ:
-            break
-    else:
+    win = next((w for con, w in _TX_WINDOWS if not mcu.read(con) & R.TXREQ), None)   # the first free TXBn
+    if win is None:
         return False
     _window(mcu, win)
     mcu.write(_RXB0CON, MsgFlags & CAN_TX_MSG_FLAGS.CAN_TX_PRIORITY_BITS)   # TXBnCON.TXPRI

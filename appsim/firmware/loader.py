@@ -17,9 +17,9 @@ from pathlib import Path
 from types import ModuleType
 
 from appsim.errors import FirmwareError
+from appsim.sim import TRACEBACK_FRAMES
 
 _loads = itertools.count()
-TRACEBACK_FRAMES = 50           # of a failing firmware, the innermost a report looks at (a recursion has thousands)
 
 
 def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:

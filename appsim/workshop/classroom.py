@@ -1,6 +1,7 @@
 """The workshop's classroom on one bus: the master console, six student stations running one exercise, the PC's monitor.
 
-Station k (1..6) has MESSAGE_ID1 = 0x100 + 0x10 (k - 1) and RTR ID 0x81 + (k - 1); your own board can take a station's place.
+Station k (1..6) has MESSAGE_ID1 = 0x100 + 0x10 (k - 1) and RTR ID 0x81 + (k - 1); your own board can take a
+station's place.
 """
 from __future__ import annotations
 

@@ -1,6 +1,8 @@
-"""The master console's firmware: the 0x088 broadcast every 100 ms, answers to RTR 0x81..0x86, RTR polls of 0x100..0x150.
+"""The master console's firmware: the 0x088 broadcast every 100 ms, answers to RTR 0x81..0x86, RTR polls of
+0x100..0x150.
 
-Firmware like the students' (load it with `appsim.firmware.loader.load_firmware`); Timer1 at 1:8 with a preload ticks every 50 ms.
+Firmware like the students' (load it with `appsim.firmware.loader.load_firmware`); Timer1 at 1:8 with a preload ticks
+every 50 ms.
 """
 from appsim.firmware import *
 

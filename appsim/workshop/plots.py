@@ -228,7 +228,8 @@ def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure
         start += width
     sample = SYNC_SEG_TQ + timing.prseg + timing.seg1ph
     ax.add_patch(Rectangle((sample - timing.sjw, 1.05), 2 * timing.sjw, 0.15, facecolor="#cccccc", gid="sjw"))
-    ax.text(sample, 1.25, f"SJW {timing.sjw} TQ: resynchronisation may lengthen Phase1 or shorten Phase2 by this much", ha="center", fontsize=8)
+    ax.text(sample, 1.25, f"SJW {timing.sjw} TQ: resynchronisation may lengthen Phase1 or shorten Phase2 by this much",
+            ha="center", fontsize=8)
     ax.axvline(sample, color="red", linewidth=2)
     ax.text(sample, -0.25, f"sample point {float(timing.sample_point):.1%}", color="red", ha="center", fontsize=9)
     tq_us = float(timing.tq_seconds(fosc)) * 1e6

@@ -46,7 +46,8 @@ def bus_timeline(trace: Sequence[BusEvent], nodes: Sequence[str]) -> Figure:
         figure.add_bar(
             name=name, orientation="h", y=[event.sender for event in shown],
             base=[event.start_ps / MS for event in shown], x=[(event.end_ps - event.start_ps) / MS for event in shown],
-            text=[f"{event.frame.can_id:03X}" for event in shown], textposition="inside", insidetextanchor="middle", textangle=0,
+            text=[f"{event.frame.can_id:03X}" for event in shown], textposition="inside", insidetextanchor="middle",
+            textangle=0,
             hovertext=[describe(event, nodes) for event in shown], hoverinfo="text",
             marker={"color": colour, "line": {"width": 0}, "pattern": {"shape": hatch}})
     errors = sum(1 for event in trace if event.error)

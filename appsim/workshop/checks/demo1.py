@@ -18,7 +18,8 @@ FORMAT = "lists the frames in the documented format"
 LOST = "says when frames were lost"
 TIME = "time column counts up with the bus"
 NAMES = (BAUD, INVISIBLE, FORMAT, LOST, TIME)
-SECONDS = 1.0                     # ~95 frames on the bus, ~34 lines through 19200 baud: the queue fills, frames are lost
+SECONDS = 1.0                     # ~95 frames on the bus, ~34 lines through 19200 baud: the queue fills,
+                                  # frames are lost
 BITS_PER_BYTE = 10                # 8N1: a start bit, 8 data bits, a stop bit
 BAUD_TOLERANCE = 0.02             # a UART receiver copes with about 2 %: 129 gives 19231 (+0.16 %)
 FEWEST_LINES = 5
@@ -85,10 +86,10 @@ def _invisible(trial: Trial) -> CheckResult:
     sent = trial.sent()
     acked = trial.acked()
     if sent or acked:
-        return CheckResult(INVISIBLE, False, f"The monitor {took_part(sent, acked)}: in {trial.mode()} mode it takes part in the bus it "
-                                             "watches (a sender alone on the bus would think someone heard it). "
-                                             "CANSetOperationMode(CAN_OP_MODE_LISTEN) after CANInitialize(): it "
-                                             "never ACKs nor flags errors (TODO 2).")
+        return CheckResult(INVISIBLE, False, f"The monitor {took_part(sent, acked)}: in {trial.mode()} mode it takes "
+                                             "part in the bus it watches (a sender alone on the bus would think "
+                                             "someone heard it). CANSetOperationMode(CAN_OP_MODE_LISTEN) after "
+                                             "CANInitialize(): it never ACKs nor flags errors (TODO 2).")
     return CheckResult(INVISIBLE, True, f"No frame sent, no ACK given, in {trial.mode()} mode.")
 
 
@@ -97,8 +98,8 @@ def _format(lines: list[str], matched: dict[int, int] | str) -> CheckResult:
         return CheckResult(FORMAT, False, matched[0].upper() + matched[1:] + ".")
     if len(matched) < FEWEST_LINES:
         return CheckResult(FORMAT, False, f"Only {count(len(matched), 'frame line')} in {SECONDS * 1000:.0f} ms "
-                                          f"(the USART at 19200 baud carries about 34 a second): one line per frame received "
-                                          "(CANIsRxReady(), CANReceiveMessage(), putsUSART()).")
+                                          "(the USART at 19200 baud carries about 34 a second): one line per frame "
+                                          "received (CANIsRxReady(), CANReceiveMessage(), putsUSART()).")
     return CheckResult(FORMAT, True, f"{count(len(matched), 'frame line')}, each the next frame on the bus "
                                      f"(the first: {lines[min(matched)].strip()!r}).")
 

@@ -1,4 +1,5 @@
-"""Ex2's checks: in Normal mode the node sends MESSAGE_ID1 with its A/D on every Timer1 overflow, and never receives its own frames.
+"""Ex2's checks: in Normal mode the node sends MESSAGE_ID1 with its A/D on every Timer1 overflow, and never receives
+its own frames.
 
 The classroom around it: the master, the PC monitor interface (it ACKs) and one more station.
 """

@@ -43,8 +43,9 @@ def _listens(trial: Trial, first: BusEvent, before: list[BusEvent]) -> CheckResu
         return CheckResult(LISTENS, False, f"Before the master's first 0x088 ended ({ms(first.end_ps)}) your node "
                                            f"{took_part(sent, acked)}: it was in Normal mode. A node in Listen-only "
                                            "mode sends nothing and never ACKs, not even the 0x088 it is waiting for. "
-                                           "CANInitialize() returns in Normal mode, so call CANSetOperationMode(CAN_OP_MODE_LISTEN) "
-                                           "after it, with CAN_CONFIG_ALL_MSG (TODO 1, 2).")
+                                           "CANInitialize() returns in Normal mode, so call "
+                                           "CANSetOperationMode(CAN_OP_MODE_LISTEN) after it, with CAN_CONFIG_ALL_MSG "
+                                           "(TODO 1, 2).")
     heard = trial.reception(first)
     return CheckResult(LISTENS, True, f"Nothing sent, nothing ACKed until the master's first 0x088 ended at "
                                       f"{ms(first.end_ps)}" + (f" (it went into {heard})." if took(heard) else "."))

@@ -124,7 +124,8 @@ def _rxb1(trial: Trial, frames) -> CheckResult:
 
 
 def _silent(trial: Trial, unasked) -> CheckResult:
-    wrong = [(s, t) for s, t in unasked if not (t is not None and not t.frame.remote and t.frame.can_id == trial.own_id)]
+    wrong = [(s, t) for s, t in unasked
+             if not (t is not None and not t.frame.remote and t.frame.can_id == trial.own_id)]
     if not wrong:
         return CheckResult(SILENT, True, "It sent nothing but answers to RTRs for its own ID.")
     sent, trigger = wrong[0]

@@ -74,8 +74,8 @@ def data_frames(trial: Trial, name: str, events: list[BusEvent]) -> CheckResult:
             return CheckResult(name, False, f"Sent {describe(frame)} at {ms(event.start_ps)}; expected "
                                             f"{hex_id(trial.own_id)} DATA {expected.hex(' ').upper()}: "
                                             f"{_what_differs(trial, frame, expected)}")
-    return CheckResult(name, True, f"{count(len(events), 'frame')} {hex_id(trial.own_id)} DATA {expected.hex(' ').upper()} "
-                                   f"(the potentiometer reads {potentiometer}).")
+    return CheckResult(name, True, f"{count(len(events), 'frame')} {hex_id(trial.own_id)} "
+                                   f"DATA {expected.hex(' ').upper()} (the potentiometer reads {potentiometer}).")
 
 
 def _what_differs(trial: Trial, frame, expected: bytes) -> str:

@@ -48,7 +48,8 @@ class Verdict:
 
     def to_dict(self) -> dict[str, Any]:
         return {"exercise": self.exercise, "score": self.score, "max_score": self.max_score, "seed": self.seed,
-                "fault": self.fault, "checks": [{"name": c.name, "passed": c.passed, "message": c.message, "points": c.points}
+                "fault": self.fault,
+                "checks": [{"name": c.name, "passed": c.passed, "message": c.message, "points": c.points}
                            for c in self.checks]}
 
     def __str__(self) -> str:

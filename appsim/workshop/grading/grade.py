@@ -168,8 +168,8 @@ class _Worker:
     def __init__(self, settings: str, processor: int | None):
         self.log: IO[bytes] = tempfile.TemporaryFile()
         kit = os.path.dirname(os.path.abspath(appsim.__file__))
-        self.process = subprocess.Popen([sys.executable, "-c", WORKER, kit], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                        stderr=self.log, text=True, encoding="utf-8")
+        self.process = subprocess.Popen([sys.executable, "-c", WORKER, kit], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE, stderr=self.log, text=True, encoding="utf-8")
         if processor is not None:
             try:
                 os.sched_setaffinity(self.process.pid, {processor})
@@ -270,7 +270,8 @@ class _Pool:
                     task, worker.task = worker.task, None
                     assert task is not None
                     result = _result(line)
-                    if result is None:              # it died (or wrote half a line): the grader's fault, not the student's
+                    # it died (or wrote half a line): the grader's fault, not the student's
+                    if result is None:
                         result = _lost(task, seed, "the grader's worker process ended while grading it "
                                                    f"({worker.why_it_died()})")
                         worker = self._replace(worker)

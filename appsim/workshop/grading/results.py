@@ -67,7 +67,8 @@ def check_output(path: Path, what: str, *, folder: bool = False) -> None:
     if not wanted(info.st_mode):
         kind = _kind(info.st_mode)
         raise GradeError(f"{what} {path} is {kind}, not {'a folder' if folder else 'a regular file'}: give "
-                         f"{'a folder' if folder else 'a file name'} (new or {'existing' if folder else 'one written by appsim grade'})")
+                         f"{'a folder' if folder else 'a file name'} "
+                         f"(new or {'existing' if folder else 'one written by appsim grade'})")
     if not os.access(path, os.W_OK):
         raise GradeError(f"{what} {path} cannot be written; give another path")
 
@@ -208,5 +209,6 @@ def summary_line(record: Record) -> str:
 def record_of(name: str, digest: str, seed: int, kit: str, exercises: Mapping[str, Record]) -> Record:
     ordered = {exercise: exercises[exercise] for exercise in EXERCISES}
     return {"submission": name, "hash": digest, "seed": seed, "kit": kit,
-            "score": sum(e["score"] for e in ordered.values()), "max_score": sum(e["max_score"] for e in ordered.values()),
+            "score": sum(e["score"] for e in ordered.values()),
+            "max_score": sum(e["max_score"] for e in ordered.values()),
             "exercises": ordered}

@@ -1,7 +1,8 @@
 """What a class handed in, read into memory as it is: each submission's firmware files, named and hashed.
 
-A submission is the regular files in its folder or zip: a symbolic link, an unreadable file or a broken zip is a fault of
-that submission (or of that exercise), never a stop for the class. Every read is bounded; nothing is written to disk.
+A submission is the regular files in its folder or zip: a symbolic link, an unreadable file or a broken zip is a fault
+of that submission (or of that exercise), never a stop for the class. Every read is bounded; nothing is written to
+disk.
 """
 from __future__ import annotations
 
@@ -25,8 +26,8 @@ MAX_ZIP = 256 << 20                 # a zip handed in, as a file
 MAX_UNZIPPED = 256 << 20            # what a zip unpacks to, in all
 MAX_MEMBERS = 10_000
 WHAT_A_SUBMISSION_IS = ("a submission is a folder holding any of ex1.py .. ex6.py and demo1_monitor.py (or Jupyter "
-                        "notebooks ex1.ipynb ... whose firmware cell has the tag `firmware`), or a .zip of one; a class "
-                        "is a folder (or a .zip) of submissions")
+                        "notebooks ex1.ipynb ... whose firmware cell has the tag `firmware`), or a .zip of one; a "
+                        "class is a folder (or a .zip) of submissions")
 
 
 @dataclass(frozen=True)
