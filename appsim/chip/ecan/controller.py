@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from appsim.bus.bitlevel import Assembled
 from appsim.bus.controller import Mode, Wire
 from appsim.can.bittiming import BitTiming
 from appsim.chip.clock import FOSC_HZ
@@ -398,7 +399,7 @@ class ECAN:
         self._setbits("PIR3", R.ERRIF)
         return Reception(None, filter_number, flag)
 
-    def _load(self, buffer: str, frame: CanFrame, filter_number: int) -> Reception:
+    def _load(self, buffer: str, frame: CanFrame | Assembled, filter_number: int) -> Reception:
         """MAB -> RXBn: ID, DLC and data, RXRTRRO, FILHIT; then RXFUL and RXBnIF."""
         base = R.BUFFER_BASE[buffer] - 0xF00
         sfr = self._sfr
@@ -424,8 +425,24 @@ class ECAN:
             self._setbits("PIR3", R.WAKIF)
             self.changed()
 
-    def receive_error(self, *, rec_increment: int = 1) -> None:
-        """A receiver detected a CRC, stuff or form error: IRXIF sets, REC += 1 (or 8)."""
+    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None) -> None:
+        """A receiver detected a CRC, stuff, form or bit error: IRXIF sets, REC += the rules' increment. A buffer in
+        error-recognition mode (RXM = 11) stores what was assembled up to the error (DS39500 §5.5)."""
         self._setbits("PIR3", R.IRXIF)
         self._set_counters(self.tec, self.rec + rec_increment)
+        if assembled is not None:
+            self._store_invalid(assembled)
         self.changed()
+
+    def _store_invalid(self, assembled: Assembled) -> None:
+        """Error recognition: the first free buffer with RXM = 11 (RXB0 first) takes the identifier, DLC and the
+        whole data bytes received; the data registers after them keep what they held."""
+        sfr = self._sfr
+        for buffer in R.RX_BUFFERS:
+            base = R.BUFFER_BASE[buffer] - 0xF00
+            if (sfr[base] & R.RXM_MASK) != R.RXM_MASK or sfr[base] & R.RXFUL:
+                continue
+            filters, mask = self._acceptance_config()[buffer]
+            hit = buffer_hit(assembled.can_id, assembled.extended, 0b11, filters, mask)
+            self._load(buffer, assembled, hit if hit is not None else filters[0].number)
+            return
