@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from appsim.can.bits import crc15, encode_annotated
 from appsim.can.frame import CanFrame
 
-ERROR_KINDS = ("bit", "stuff", "crc", "form", "ack")
+ERROR_KINDS = ("bit", "stuff", "crc", "form", "ack", "dominant")
 _LABEL = {"bit": "bit error", "stuff": "stuff error", "crc": "CRC error", "form": "form error", "ack": "ACK error"}
 _ARBITRATION_FIELDS = frozenset(("SOF", "ID", "SRR", "IDE", "RTR"))
 _MAX_BUS_BITS = 2000        # no frame and error frames last this long; a guard against a run that never settles
@@ -21,19 +21,22 @@ _MAX_BUS_BITS = 2000        # no frame and error frames last this long; a guard 
 
 @dataclass(frozen=True, slots=True)
 class Injection:
-    """Make `node` detect an error of `kind` at bit `bit` (SOF = 0, counted in its own bits, stuff bits included) of
+    """Make `node` see an error of `kind` at bit `bit` (SOF = 0, counted in its own bits, stuff bits included) of
     the next frame it takes part in (with identifier `can_id`, if given), `frames` times.
 
-    bit: it samples the opposite of the wire at `bit` (a transmitter: a bit error there; a receiver: whatever that
-    wrong bit leads to). stuff: it sees a stuff error at `bit`. crc: its CRC check fails (flag after the ACK
-    delimiter; `bit` unused). form: it samples dominant at `bit`, a fixed-form bit. ack: a transmitter sees the ACK
-    slot recessive (`bit` unused)."""
+    bit: it samples the opposite of the wire at `bit` (a transmitter: a bit error there, also inside its own active
+    error flag; a receiver: whatever that wrong bit leads to). stuff: it sees a stuff error at `bit`. crc: its CRC
+    check fails (flag after the ACK delimiter; `bit` unused). form: it samples dominant at `bit` (a fixed-form bit:
+    CRC or ACK delimiter, EOF, error delimiter). ack: a transmitter sees the ACK slot recessive (`bit` unused).
+    dominant: it drives the wire dominant for `length` bits from `bit`, whatever it is doing (a faulty transceiver);
+    the other nodes see what follows."""
 
     node: str
     kind: str
     bit: int = 0
     can_id: int | None = None
     frames: int = 1
+    length: int = 1
 
     def __post_init__(self) -> None:
         if self.kind not in ERROR_KINDS:
@@ -65,7 +68,7 @@ class Station:
     tec: int
     rec: int
     frame: CanFrame | None = None
-    injection: Injection | None = None
+    injections: tuple[Injection, ...] = ()
 
 
 @dataclass(slots=True)
@@ -152,12 +155,16 @@ class _Node:
     # ----------------------------------------------------------------- one sample
     def sample(self, wire: int) -> int:
         """Read the wire at this bit's sample point; return what to drive in the next bit."""
-        injection = self.station.injection
-        if injection is not None and self.k == injection.bit and self.phase == _FRAME:
-            if injection.kind == "bit":
-                wire = 1 - wire
-            elif injection.kind == "form":
-                wire = 0
+        for injection in self.station.injections:
+            if injection.bit == self.k and injection.kind in ("bit", "form"):
+                wire = 1 - wire if injection.kind == "bit" else 0
+        level = self._protocol_bit(wire)
+        for injection in self.station.injections:
+            if injection.kind == "dominant" and injection.bit <= self.k + 1 < injection.bit + injection.length:
+                level = 0
+        return level
+
+    def _protocol_bit(self, wire: int) -> int:
         if self.phase == _FRAME:
             return self._frame_bit(wire)
         if self.phase == _FLAG:
@@ -202,9 +209,8 @@ class _Node:
             return self._stuffed_bit(wire)
         return self._tail_bit(wire)
 
-    def _injected(self, kind: str) -> bool:
-        injection = self.station.injection
-        return injection is not None and injection.kind == kind
+    def _injected(self, kind: str, bit: int | None = None) -> bool:
+        return any(i.kind == kind and bit in (None, i.bit) for i in self.station.injections)
 
     def _next_level(self) -> int:
         """What this node drives in the next frame bit (a receiver: recessive, or dominant in the ACK slot)."""
@@ -216,8 +222,7 @@ class _Node:
         return 1
 
     def _stuffed_bit(self, wire: int) -> int:
-        injection = self.station.injection
-        if injection is not None and injection.kind == "stuff" and injection.bit == self.k:
+        if self._injected("stuff", self.k):
             return self._error("stuff", "six equal bits (injected)")
         if self.run == 5:                 # a stuff bit
             if wire == self.last:

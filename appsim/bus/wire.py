@@ -411,32 +411,33 @@ class Bus:
         self.sim.call_at(end, end_of_frame)
 
     # ------------------------------------------------------------------ bit by bit
-    def inject(self, node: str, kind: str, bit: int = 0, *, can_id: int | None = None, frames: int = 1) -> Injection:
-        """Make `node` detect an error of `kind` ("bit", "stuff", "crc", "form", "ack") at bit `bit` (SOF = 0) of the
-        next `frames` frames it takes part in (with identifier `can_id`, if given); see `Injection`."""
+    def inject(self, node: str, kind: str, bit: int = 0, *, can_id: int | None = None, frames: int = 1,
+               length: int = 1) -> Injection:
+        """Make `node` see an error of `kind` ("bit", "stuff", "crc", "form", "ack") at bit `bit` (SOF = 0), or drive
+        `length` dominant bits from there ("dominant"), in the next `frames` frames it takes part in (with
+        identifier `can_id`, if given); see `appsim.bus.bitlevel.Injection`."""
         if all(port.name != node for port in self.ports):
             raise KeyError(f"no node named {node!r} on this bus")
-        injection = Injection(node, kind, bit, can_id, frames)
+        injection = Injection(node, kind, bit, can_id, frames, length)
         self._injections.append([injection, frames])
         return injection
 
-    def _injections_for(self, frame: CanFrame, ports: list[_Port]) -> dict[str, Injection]:
-        """The injections that fire in this frame, by node name (one per node, the oldest first)."""
+    def _injections_for(self, frame: CanFrame, ports: list[_Port]) -> dict[str, tuple[Injection, ...]]:
+        """The injections that fire in this frame, by node name."""
         if not self._injections:
             return {}
         names = {port.name for port in ports}
-        firing: dict[str, Injection] = {}
+        firing: dict[str, tuple[Injection, ...]] = {}
         for armed in self._injections:
             injection = armed[0]
-            if (injection.node in names and injection.node not in firing
-                    and injection.can_id in (None, frame.can_id)):
-                firing[injection.node] = injection
+            if injection.node in names and injection.can_id in (None, frame.can_id):
+                firing[injection.node] = firing.get(injection.node, ()) + (injection,)
                 armed[1] -= 1
         self._injections = [armed for armed in self._injections if armed[1] > 0]
         return firing
 
     def _bit_by_bit(self, start: int, entries: list[tuple[int, _Port, str, CanFrame]], listeners: list[_Port],
-                    injections: dict[str, Injection]) -> None:
+                    injections: dict[str, tuple[Injection, ...]]) -> None:
         """The frame and any error frames bit by bit (`appsim.bus.bitlevel`); the controllers learn the outcome
         when the last error delimiter ends, a node that lost arbitration at the bit where it lost."""
         contending = {id(e[1]) for e in entries}
@@ -446,7 +447,7 @@ class Bus:
         for port in ports:
             bit_ps, sample_ps = port.clock(self.bit_ps)
             stations.append(Station(port.name, port.mode == Mode.LISTEN_ONLY, bit_ps, sample_ps, port.tec, port.rec,
-                                    frames.get(id(port)), injections.get(port.name)))
+                                    frames.get(id(port)), injections.get(port.name, ())))
         run = run_frame(start, stations)
         buffers = {id(e[1]): e[2] for e in entries}
         for _, port, buffer, _ in entries:
