@@ -121,3 +121,22 @@ def test_bus_off_after_repeated_errors_and_recovery_after_128_sequences_of_11_re
     back = world.bus.trace[32]
     assert (back.start_ps - recessive_from) // world.bus.bit_ps == 128 * 11
     assert back.ok and a.ecan.tec == 0 and not a.ecan.error_passive, "recovered error-active, counters reset"
+
+
+def test_leaving_loopback_waits_for_11_recessive_bits_as_leaving_configuration_does(world):
+    times = {}
+
+    def main():
+        CANInitialize(*CLASSROOM, CAN_CONFIG_ALL_MSG)
+        for mode in (CAN_OP_MODE_LOOP, CAN_OP_MODE_NORMAL):
+            asked = world.sim.time()
+            CANSetOperationMode(mode)           # returns once OPMODE shows the mode
+            times[mode] = world.sim.time() - asked
+        while True:
+            CANIsRxReady()
+
+    world.node("n", main)
+    world.run(0.01)
+    bit = world.bus.bit_ps
+    assert times[CAN_OP_MODE_LOOP] < bit, "from Normal on an idle bus: the bus's recessive bits were counted"
+    assert 11 * bit <= times[CAN_OP_MODE_NORMAL] < 12 * bit

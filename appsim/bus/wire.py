@@ -283,14 +283,15 @@ class Bus:
     def mode_requested(self, controller: Controller) -> None:
         """OPMODE follows REQOP after 11 consecutive recessive bits. A module that has been on the bus
         counts the recessive bits that end every frame (ACK delimiter, EOF, intermission) or error frame
-        (delimiter, intermission): it switches when the bus goes idle. One coming from Configuration or
-        Disable mode starts counting at the request, at its own bit time."""
+        (delimiter, intermission): it switches when the bus goes idle. One coming from Configuration,
+        Disable or Loopback mode (off the bus) starts counting at the request, or when its own loopback frame
+        ends, at its own bit time."""
         port = self._by_controller[id(controller)]
         if port.mode_timer is not None:
             return
         now = self.sim.time()
-        if port.mode in (Mode.CONFIGURATION, Mode.DISABLE):
-            when = max(now, self.busy_until) + BUS_IDLE_BITS * self._node_bit_ps(port)
+        if port.mode in (Mode.CONFIGURATION, Mode.DISABLE, Mode.LOOPBACK):
+            when = max(now, self.busy_until, port.loop_busy_until) + BUS_IDLE_BITS * self._node_bit_ps(port)
         else:
             when = max(now, self.busy_until)
         port.mode_timer = self.sim.call_at(when, lambda: self._change_mode(port))

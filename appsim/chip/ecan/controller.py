@@ -165,7 +165,7 @@ class ECAN:
         reg = R.BY_ADDRESS.get(address)
         if reg is None:
             return
-        if reg.protected and self.opmode != _CONFIGURATION:
+        if (reg.protected or reg.locked) and self.opmode != _CONFIGURATION:
             self.ignored_writes.append((reg.name, value & 0xFF))
             return
         index = address - 0xF00
@@ -195,7 +195,7 @@ class ECAN:
                 for buffer in R.TX_BUFFERS:
                     if self.get(buffer + "CON") & R.TXREQ:
                         self._request_abort(buffer)
-                self._clearbits("CANCON", R.ABAT)     # ABAT clears itself once acted upon
+                self._abort_done()
             if _MODE_OF_REQOP[new >> 5] != self.opmode and self.wire:
                 self.wire.mode_requested(self)
         elif name in ("TXB0CON", "TXB1CON", "TXB2CON"):
@@ -216,6 +216,11 @@ class ECAN:
             raise UnsupportedMode(
                 f"ECANCON.MDSEL = {new >> 6:02b} selects ECAN Mode {new >> 6}; this kit models the "
                 "PIC18F8680 in legacy Mode 0 only, the mode the workshop and AN738 use (MDSEL = 00)")
+
+    def _abort_done(self) -> None:
+        """ABAT clears itself once every abort is carried out: at once, or when the frame on the wire ends."""
+        if not self._abort_requested:
+            self._clearbits("CANCON", R.ABAT)
 
     def _request_abort(self, buffer: str) -> None:
         """A frame not on the wire aborts at once; one on the wire is allowed to finish."""
@@ -305,6 +310,7 @@ class ECAN:
         """EOF reached with an ACK: TXREQ clears, TXBnIF sets, TEC counts down by one."""
         self.on_wire = None
         self._abort_requested.discard(buffer)
+        self._abort_done()
         self._clearbits(buffer + "CON", R.TXREQ)
         self._setbits("PIR3", R.TXBIF[buffer])
         self._set_counters(max(self.tec - 1, 0), self.rec)
@@ -335,6 +341,7 @@ class ECAN:
             self._abort_requested.discard(buffer)
             self._clearbits(buffer + "CON", R.TXREQ)
             self._setbits(buffer + "CON", R.TXABT)
+            self._abort_done()
 
     def bus_off_recovery(self, sequences: int) -> None:
         """Count occurrences of 11 recessive bits while bus-off; at 128 the node is error-active again."""
