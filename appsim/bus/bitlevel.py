@@ -15,7 +15,8 @@ from appsim.can.frame import CanFrame
 
 ERROR_KINDS = ("bit", "stuff", "crc", "form", "ack", "dominant")
 _LABEL = {"bit": "bit error", "stuff": "stuff error", "crc": "CRC error", "form": "form error", "ack": "ACK error"}
-_ARBITRATION_FIELDS = frozenset(("SOF", "ID", "SRR", "IDE", "RTR"))
+# The arbitration field: identifier and RTR; an extended frame's SRR and IDE too (a standard frame's IDE is control).
+_ARBITRATION_FIELDS = (frozenset(("ID", "RTR")), frozenset(("ID", "SRR", "IDE", "RTR")))
 _MAX_BUS_BITS = 2000        # no frame and error frames last this long; a guard against a run that never settles
 
 
@@ -113,8 +114,9 @@ class _Node:
         self.t0 = sof_ps
         self.tec, self.rec = station.tec, station.rec
         self.levels: list[int] = []           # what it drives, bit by bit from SOF
-        self.tx = encode_annotated(station.frame) if station.frame is not None else None
-        self.transmitting = self.tx is not None     # its role in the frame: stays set through its error frames
+        self.tx = encode_annotated(station.frame) if station.frame is not None else []
+        self.arbitration = _ARBITRATION_FIELDS[station.frame is not None and station.frame.extended]
+        self.transmitting = bool(self.tx)           # its role in the frame: stays set through its error frames
         self.levels.append(0 if self.transmitting else 1)
         self.k = 0                            # the bit being sampled, in its own bits from SOF
         self.phase = _FRAME
@@ -194,7 +196,7 @@ class _Node:
                 if wire == 1 or self._injected("ack"):
                     return self._error("ack", "no dominant bit in the ACK slot")
             elif wire != sent:
-                if field_name in _ARBITRATION_FIELDS and sent == 1:
+                if field_name in self.arbitration and sent == 1:
                     if self.tx[k].stuff:
                         return self._error("stuff", "a recessive stuff bit read dominant in arbitration",
                                            tec=0)

@@ -57,8 +57,6 @@ class _Port(Protocol):
 
     rate_ok: bool
     suspend_until: int
-    tec: int
-    rec: int
 
     @property
     def name(self) -> str: ...
@@ -69,6 +67,10 @@ class _Port(Protocol):
     def bus_off(self) -> bool: ...
     @property
     def error_passive(self) -> bool: ...
+    @property
+    def tec(self) -> int: ...
+    @property
+    def rec(self) -> int: ...
     def pending(self) -> tuple[str, CanFrame] | None:
         """The buffer and frame this node would send next, if any."""
     def started(self, buffer: str) -> None: ...
