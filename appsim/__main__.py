@@ -1,3 +1,5 @@
-from appsim.cli import main
 import sys
+
+from appsim.cli import main
+
 sys.exit(main())

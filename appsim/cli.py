@@ -6,57 +6,95 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
-from appsim.chip.clock import FOSC_HZ
+from appsim.can.bittiming import CLASSIC_CAN_MAX_BIT_RATE, FOSC_MAX_HZ
 from appsim.errors import FirmwareError, OutputError
-from appsim.workshop.course import CLASSROOM_BIT_RATE, CLASSROOM_EXERCISES, STATIONS
+from appsim.workshop.course import CLASSROOM_BIT_RATE, STATIONS, exercise_name
 
 HOUR, DAY = 3600, 86400
 INTERRUPTED = 130               # the exit status after Ctrl-C: 128 + SIGINT, as shells report it
 
 
+def _number(text: str, what: str, kind: Callable[[str], float] = int) -> Any:
+    """`text` as a number of `kind`, or an argument error that says `what` was expected."""
+    try:
+        return kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what}; got {text!r}") from None
+
+
+def _in_range(text: str, what: str, fits: Callable[[float], bool], kind: Callable[[str], float] = int) -> Any:
+    value = _number(text, what, kind)
+    if not fits(value):
+        raise argparse.ArgumentTypeError(f"{what}; got {text}")
+    return value
+
+
 def _potentiometer(text: str) -> int:
-    value = int(text, 0)
-    if not 0 <= value <= 1023:
-        raise argparse.ArgumentTypeError(f"the potentiometer on AN0 gives a 10-bit value, 0..1023; got {value}")
-    return value
+    from appsim.chip.adc import FULL_SCALE
+    return _in_range(text, f"the potentiometer on AN0 gives a 10-bit A/D value, a whole number 0..{FULL_SCALE}",
+                     lambda value: 0 <= value <= FULL_SCALE, lambda t: int(t, 0))
 
 
-def _seconds(text: str, what: str = "simulated time", most: int = DAY) -> float:
-    value = float(text)
-    if not 0 < value <= most:
-        raise argparse.ArgumentTypeError(f"{what} must be between 0 and {most} s; got {value}")
-    return value
+def _seconds(text: str) -> float:
+    return _in_range(text, f"a run lasts more than 0 and at most {DAY} seconds (a day)",
+                     lambda value: 0 < value <= DAY, float)
 
 
 def _cpu_seconds(text: str) -> float:
-    return _seconds(text, "the time limit (CPU seconds)", HOUR)
+    return _in_range(text, f"the time limit is CPU seconds, more than 0 and at most {HOUR} (an hour)",
+                     lambda value: 0 < value <= HOUR, float)
 
 
-def _exercise(text: str) -> int:
-    value = int(text.lower().removeprefix("ex"))
-    if value not in CLASSROOM_EXERCISES:
-        raise argparse.ArgumentTypeError(f"the workshop has exercises 1..6 (EX1.C .. EX6.C); got {text}")
-    return value
+def _exercise_name(text: str) -> str:
+    try:
+        return exercise_name(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _classroom_exercise(text: str) -> int:
+    try:
+        name = exercise_name(text)
+    except ValueError:
+        name = None
+    if name is None or name == "demo1":
+        monitor = " (Demo1, the monitor, runs with: appsim monitor)" if name else ""
+        raise argparse.ArgumentTypeError(f"the classroom's stations run Ex1..Ex6 (1..6, ex1..ex6); got {text!r}"
+                                         + monitor)
+    return int(name.removeprefix("ex"))
 
 
 def _jobs(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--jobs is a whole number of worker processes, 1 or more; got {text!r}") \
-            from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"--jobs is how many exercises are graded at once: 1 or more; got {value}")
-    return value
+    return _in_range(text, "--jobs is how many exercises are graded at once, a whole number: 1 or more",
+                     lambda value: value >= 1)
 
 
 def _station(text: str) -> int:
-    value = int(text)
-    if not 1 <= value <= STATIONS:
-        raise argparse.ArgumentTypeError(f"stations are numbered 1..{STATIONS} (MESSAGE_ID1 0x100 .. 0x150)")
-    return value
+    return _in_range(text, f"stations are numbered 1..{STATIONS} (MESSAGE_ID1 0x100 .. 0x150)",
+                     lambda value: 1 <= value <= STATIONS)
+
+
+def _seed(text: str) -> int:
+    return _number(text, "a seed is a whole number, e.g. 2024")
+
+
+def _bit_rate(text: str) -> int:
+    return _in_range(text, f"classic CAN runs at 1 bit/s .. {CLASSIC_CAN_MAX_BIT_RATE:,} bit/s (1 Mbit/s, ISO 11898): "
+                           "give the bit rate in bit/s, e.g. 125000",
+                     lambda value: 1 <= value <= CLASSIC_CAN_MAX_BIT_RATE)
+
+
+def _fosc(text: str) -> int:
+    return _in_range(text, f"Fosc is the PIC18F8680's clock in Hz, 1 .. {FOSC_MAX_HZ:,} (the data sheet's 40 MHz), "
+                           "e.g. 40000000", lambda value: 1 <= value <= FOSC_MAX_HZ)
+
+
+def _top(text: str) -> int:
+    return _in_range(text, "--top is how many settings to list, a whole number: 1 or more", lambda value: value >= 1)
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -70,6 +108,9 @@ def cmd_board(args: argparse.Namespace) -> int:
 
 
 def cmd_classroom(args: argparse.Namespace) -> int:
+    if args.station is not None and args.join is None:
+        args.usage_error("--station says which station your firmware takes, so it goes with --join: "
+                         "--join my_ex3.py --station 2")
     from appsim import session
     return session.cmd_classroom(args)
 
@@ -81,9 +122,11 @@ def cmd_monitor(args: argparse.Namespace) -> int:
 
 def cmd_bittiming(args: argparse.Namespace) -> int:
     from appsim.can.bittiming import calculate, format_table
-    solutions = calculate(args.bit_rate, args.fosc)
+    from appsim.chip.clock import FOSC_HZ
+    fosc = args.fosc or FOSC_HZ
+    solutions = calculate(args.bit_rate, fosc)
     if not solutions:
-        print(f"no valid bit timing gives exactly {args.bit_rate} bit/s at Fosc {args.fosc} Hz "
+        print(f"no valid bit timing gives exactly {args.bit_rate} bit/s at Fosc {fosc} Hz "
               "(8..25 TQ per bit, BRP 1..64)")
         return 1
     print(format_table(solutions[: args.top]))
@@ -149,9 +192,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="The master console and six stations running the solution of one exercise. "
                     "--join puts your firmware on a station. With --interface socketcan --channel vcan0 the "
                     "whole workshop goes on that bus in real time (candump vcan0 shows it).")
-    classroom.add_argument("--exercise", type=_exercise, default=6, help="1..6 (default 6)")
+    classroom.add_argument("--exercise", type=_classroom_exercise, default=6, help="1..6, ex1..ex6 (default 6)")
     classroom.add_argument("--join", metavar="FIRMWARE", help="your firmware file, on --station")
-    classroom.add_argument("--station", type=_station, default=1, help="which station your board is (1..6)")
+    classroom.add_argument("--station", type=_station,
+                           help="with --join: which station your board takes, 1..6 (default 1); its MESSAGE_ID1 "
+                                "must be that station's, 0x100 + 0x10 x (station - 1)")
     classroom.add_argument("--full-trace", action="store_true", help="print every frame, not the first 40")
 
     monitor = commands.add_parser(
@@ -160,37 +205,47 @@ def build_parser() -> argparse.ArgumentParser:
                     "Its USB-CDC port appears on this PC as a serial port (a pty) that screen, minicom, "
                     "pyserial open. --slcan sets DSW2 switch 1: the board speaks SLCAN, so python-can's "
                     "'slcan' interface can use it as a CAN adapter.")
-    monitor.add_argument("--exercise", type=_exercise, default=2, help="what the classroom runs (default 2)")
+    monitor.add_argument("--exercise", type=_classroom_exercise, default=2,
+                         help="what the classroom runs, 1..6 or ex1..ex6 (default 2)")
+    monitor.add_argument("--firmware", type=Path, metavar="FIRMWARE",
+                         help="your Demo1 firmware on the monitor board (default: solutions/demo1_monitor.py)")
     monitor.add_argument("--slcan", action="store_true", help="SLCAN (Lawicel) protocol instead of text lines")
     monitor.add_argument("--transport", choices=("pty", "socket"), default="pty",
                          help="pty (a /dev/pts path) or socket (socket://127.0.0.1:PORT for pyserial)")
 
-    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0), (monitor, 60.0)):
+    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0)):
         sub.add_argument("--seconds", type=_seconds, default=default_seconds,
                          help=f"simulated time to run, up to a day (default {default_seconds:g} s)")
+    monitor.add_argument("--seconds", type=_seconds, default=60.0,
+                         help="how long the monitor runs, in seconds of real time: it stops then (default 60 s, "
+                              "up to a day; Ctrl-C stops it sooner)")
     for sub in (demo, classroom, monitor):
-        sub.add_argument("--seed", type=int, default=202,
+        sub.add_argument("--seed", type=_seed, default=202,
                          help="seed of the stations' potentiometer values (default 202): same seed, same run")
+    for sub in (demo, board, classroom, monitor):
+        sub.add_argument("--vcd", type=Path, metavar="FILE",
+                         help="write the CAN line's waveform as it goes, a VCD for PulseView or sigrok-cli's CAN "
+                              "decoder (docs/traces.md)")
     for sub in (board, classroom, monitor):
-        sub.add_argument("--log", type=Path,
-                         help="write every frame as it goes: .log (candump), .asc, .blf or .csv; Ctrl-C or a "
-                              "crash leaves it readable to its last frame")
+        sub.add_argument("--log", type=Path, action="append", metavar="FILE",
+                         help="write every frame as it goes: .log (candump), .asc, .blf or .csv (give --log again "
+                              "for more formats); Ctrl-C or a crash leaves it readable to its last frame")
         sub.add_argument("--interface", help="python-can interface to join: socketcan, virtual, udp_multicast, "
                                              "pcan, kvaser, slcan ... (default: the simulated bus alone)")
         sub.add_argument("--channel", help="python-can channel, e.g. vcan0, can0, /dev/ttyACM0")
     demo.set_defaults(handler=cmd_demo)
     board.set_defaults(handler=cmd_board)
-    classroom.set_defaults(handler=cmd_classroom)
+    classroom.set_defaults(handler=cmd_classroom, usage_error=classroom.error)
     monitor.set_defaults(handler=cmd_monitor)
 
     timing = commands.add_parser("bittiming", help="list BRGCON settings for a bit rate",
-                                 description="Every valid PIC18F8680 bit timing for a bit rate, best "
-                                             "sample point first, with the BRGCON1..3 values.")
-    timing.add_argument("bit_rate", type=int, nargs="?", default=CLASSROOM_BIT_RATE,
-                        help=f"bit rate in bit/s (default {CLASSROOM_BIT_RATE}, the classroom bus)")
-    timing.add_argument("--fosc", type=int, default=FOSC_HZ,
-                        help=f"oscillator frequency in Hz (default {FOSC_HZ // 10**6} MHz, the APP023's)")
-    timing.add_argument("--top", type=int, default=10, help="how many settings to list (default 10)")
+                                 description="Every valid PIC18F8680 bit timing for a classic CAN bit rate (up to "
+                                             "1 Mbit/s), best sample point first, with the BRGCON1..3 values.")
+    timing.add_argument("bit_rate", type=_bit_rate, nargs="?", default=CLASSROOM_BIT_RATE,
+                        help="bit rate in bit/s, 1 .. 1000000 (default 125000, the classroom bus)")
+    timing.add_argument("--fosc", type=_fosc, help="oscillator frequency in Hz, up to 40 MHz (default 40 MHz, the "
+                                                   "APP023's)")
+    timing.add_argument("--top", type=_top, default=10, help="how many settings to list (default 10)")
     timing.set_defaults(handler=cmd_bittiming)
 
     grade = commands.add_parser(
@@ -207,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
     grade.add_argument("--gradescope", type=Path,
                        help="Gradescope results.json (one submission), else a folder of NAME.json")
     grade.add_argument("--jobs", type=_jobs, default=None, help="exercises graded at once (default: the cores)")
-    grade.add_argument("--seed", type=int, help="seed of the random inputs (default: the results file's, else drawn)")
+    grade.add_argument("--seed", type=_seed, help="seed of the random inputs (default: the results file's, else drawn)")
     grade.add_argument("--time-limit", type=_cpu_seconds, default=60.0,
                        help="CPU seconds per exercise, the firmware's and the grader's for it (default 60); waiting "
                             "for a busy machine's CPU does not count; 10 s asleep stop it")
@@ -224,10 +279,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run FIRMWARE (default: exercises/exN.py) in a simulated classroom and judge what it did on "
                     "the bus and the board: the same check the notebook's last cell runs and `appsim grade` uses. "
                     "Exit status 0 with full marks.")
-    checking.add_argument("exercise", choices=("ex1", "ex2", "ex3", "ex4", "ex5", "ex6", "demo1"),
-                          metavar="EXERCISE", help="ex1 .. ex6 or demo1")
+    checking.add_argument("exercise", type=_exercise_name, metavar="EXERCISE",
+                          help="ex1 .. ex6 (or 1 .. 6, EX3 ...) or demo1")
     checking.add_argument("firmware", nargs="?", help="your firmware file (default: exercises/EXERCISE.py)")
-    checking.add_argument("--seed", type=int, help="seed of the random inputs (default: a fresh one, printed)")
+    checking.add_argument("--seed", type=_seed, help="seed of the random inputs (default: a fresh one, printed)")
     checking.set_defaults(handler=cmd_check)
     return parser
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import functools
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
@@ -15,25 +16,53 @@ import can
 from appsim.board.app023 import APP023
 from appsim.board.usbcdc import UsbCdc
 from appsim.bus.link import BusLink
-from appsim.bus.monitor import HEADER, LiveTrace, TraceLog, cannot_write, error_counters, summary
+from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, cannot_write, error_counters, summary
 from appsim.bus.realtime import WallClock
-from appsim.bus.wire import Bus
+from appsim.bus.waveform import WaveformLog
+from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
 from appsim.firmware.loader import constants, load_firmware
 from appsim.sim import PS_PER_SECOND, Simulator, ps
+from appsim.workshop.checks.demo1 import FRAME_LINE, LOST_COUNT
 from appsim.workshop.classroom import Classroom, station_defines
-from appsim.workshop.course import CLASSROOM_BIT_RATE, SOLUTIONS, STATIONS, station_ids
+from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES, SOLUTIONS, STATIONS, station_ids
 from appsim.workshop.faults import board_fault
 
 TRACE_LINES_SHOWN = 40
+PROGRESS_EVERY_S = 1.0          # wall-clock seconds between two progress lines
+
+
+class Progress:
+    """How far a run is, on one line of stderr rewritten in place at most every `PROGRESS_EVERY_S` of wall time, when
+    stderr is a terminal: simulated seconds out of `seconds`, then what `detail()` says."""
+
+    def __init__(self, sim: Simulator, seconds: float, detail: Callable[[], str] = lambda: ""):
+        self.sim, self.seconds, self.detail = sim, seconds, detail
+        self.shown = False
+        self._next = time.monotonic()
+
+    def __call__(self) -> None:
+        if not sys.stderr.isatty() or time.monotonic() < self._next:
+            return
+        self._next = time.monotonic() + PROGRESS_EVERY_S
+        detail = self.detail()
+        print(f"\r  {self.sim.now / PS_PER_SECOND:6.1f} / {self.seconds:g} s{'  ' + detail if detail else ''}\x1b[K",
+              end="", file=sys.stderr, flush=True)
+        self.shown = True
+
+    def done(self) -> None:
+        """End the line, if one was shown."""
+        if self.shown:
+            print(file=sys.stderr)
+            self.shown = False
 
 
 class Session:
     """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time.
 
-    Its logs (`logs`) are opened first, so a path that cannot be written stops the command before anything runs
-    (`OutputError`); each gets every frame as the bus carries it. A session is closed (logs ended, link closed and its
-    report printed) when its `with` block ends."""
+    Its files (`logs`: the --log paths, then the --vcd waveform) are opened first, so a path that cannot be written
+    stops the command before anything runs (`OutputError`); each gets every event as the bus carries it. A session is
+    closed (files ended, link closed and its report printed) when its `with` block ends."""
 
     def __init__(self, args: argparse.Namespace, out: TextIO, *, logs: Sequence[Path] = ()):
         self.sim = Simulator()
@@ -41,13 +70,13 @@ class Session:
         self.out = out
         self.link: BusLink | None = None
         self.trace = LiveTrace(self.bus)
-        self.logs: list[TraceLog] = []
+        self.logs: list[EventFile] = []
         self.reported: set[str] = set()          # boards whose stop was reported
         try:
             for path in logs:
-                log = TraceLog(path)
-                self.logs.append(log)
-                self.bus.trace.listeners.append(log.write)
+                self._keep(TraceLog(path))
+            if getattr(args, "vcd", None):
+                self._keep(WaveformLog(args.vcd, self.bus))
             if getattr(args, "interface", None):
                 try:
                     self.link = BusLink(self.bus, interface=args.interface, channel=args.channel)
@@ -58,47 +87,65 @@ class Session:
             self.close()
             raise
 
+    def _keep(self, log: EventFile) -> None:
+        self.logs.append(log)
+        self.bus.trace.listeners.append(log.write)
+
     def run(self, seconds: float, *, live: bool, real_time: bool = False,
-            pollers: tuple[Callable[[], None], ...] = ()) -> None:
+            pollers: tuple[Callable[[], None], ...] = (), progress: Progress | None = None) -> None:
         """Run `seconds` of simulated time: as fast as it can, or, linked (or `real_time`), paced to the
         wall clock with `pollers` and the link polled between slices, the trace shown live if `live`, and a board
-        that stops reported when it does."""
-        if self.link is None and not real_time:
-            self._fast(seconds)
-            return
-        clock = WallClock(self.sim)
-        for poll in (*pollers, self.report_failures):
-            clock.add_poller(poll)
-        if self.link is not None:
-            clock.add_poller(self.link.poll)
-            print(f"linked to {self.link.outside.channel_info}, running in real time for {seconds:g} s "
-                  "(Ctrl-C stops)", file=self.out)
-        if live:
-            clock.add_poller(lambda: self._show(self.trace.new_lines()))
-        clock.run(seconds)
+        that stops reported when it does. `progress` shows how far it is on a terminal (as fast as it can, runs of
+        5 s or more show their simulated time anyway)."""
+        if self.link is None and not real_time and progress is None and seconds >= 5:
+            progress = Progress(self.sim, seconds)
+        try:
+            if self.link is None and not real_time:
+                self._fast(seconds, progress)
+                return
+            clock = WallClock(self.sim)
+            for poll in (*pollers, self.report_failures, *([progress] if progress else [])):
+                clock.add_poller(poll)
+            if self.link is not None:
+                clock.add_poller(self.link.poll)
+                print(f"linked to {self.link.outside.channel_info}, running in real time for {seconds:g} s "
+                      "(Ctrl-C stops)", file=self.out)
+            if live:
+                clock.add_poller(lambda: self._show(self.trace.new_lines()))
+            clock.run(seconds)
+        finally:
+            if progress:
+                progress.done()
 
-    def _fast(self, seconds: float) -> None:
+    def _fast(self, seconds: float, progress: Progress | None) -> None:
         end = ps(seconds)
         step = PS_PER_SECOND // 2
-        progress = seconds >= 5 and sys.stderr.isatty()
         while self.sim.now < end:
             self.sim.run(until=min(self.sim.now + step, end))
             if progress:
-                print(f"\r  simulated {self.sim.now / PS_PER_SECOND:6.1f} / {seconds:g} s", end="", file=sys.stderr)
-        if progress:
-            print(file=sys.stderr)
+                progress()
 
     def _show(self, lines: list[str]) -> None:
         for line in lines:
             print(line, file=self.out)
 
-    def print_trace(self, limit: int | None = TRACE_LINES_SHOWN) -> None:
+    def print_trace(self, limit: int | None = TRACE_LINES_SHOWN, *, more: str = "") -> None:
+        """The trace's new lines, the first `limit` of them; past the limit, how many more and where they are (in a
+        log, or `more`: how this command shows them)."""
         lines = self.trace.new_lines()
         print(HEADER, file=self.out)
         self._show(lines if limit is None else lines[:limit])
         if limit is not None and len(lines) > limit:
-            print(f"{'':>11}  ... {len(lines) - limit} more frames (see the trace log)", file=self.out)
+            logged = next((log.path for log in self.logs if isinstance(log, TraceLog)), None)
+            where = f"all of them are in {logged}" if logged else "--log trace.log keeps them"
+            print(f"{'':>11}  ... {len(lines) - limit} more frames ({where}{'; ' + more if more else ''})",
+                  file=self.out)
         print(summary(self.bus), file=self.out)
+
+    def print_written(self) -> None:
+        """What each of the session's files holds, now that the run is over."""
+        for log in self.logs:
+            print(f"wrote {log.path} ({log.kind}, {log.written} frames)", file=self.out)
 
     def report_failures(self) -> None:
         """Say once, for each board whose firmware is no longer running, which file it ran and why it stopped, with
@@ -139,8 +186,8 @@ Command = Callable[[argparse.Namespace], int]
 
 
 def logs_asked(args: argparse.Namespace) -> list[Path]:
-    """The log `--log` names, if any."""
-    return [args.log] if args.log else []
+    """The logs `--log` names, if any."""
+    return list(args.log or [])
 
 
 def session_command(logs: Callable[[argparse.Namespace], list[Path]] = logs_asked) -> Callable[[Body], Command]:
@@ -241,8 +288,9 @@ def cmd_demo(args: argparse.Namespace, session: Session) -> None:
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
     picture = save_lcd_picture(classroom.boards, args.out / "lcds.png")
-    candump, asc = (log.path for log in session.logs)
-    print(f"\nwrote {candump} (candump -L format), {asc} (Vector ASC) and {picture} (every LCD)", file=out)
+    print("", file=out)
+    session.print_written()
+    print(f"wrote {picture} (every LCD)", file=out)
 
 
 @session_command()
@@ -265,51 +313,135 @@ def cmd_board(args: argparse.Namespace, session: Session) -> None:
     if session.link is None:
         session.print_trace()
     print(board.glcd, file=out)
+    session.print_written()
 
 
 @session_command()
 def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
     out = session.out
     classroom = Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
+    station = args.station or 1
     if args.join:
         firmware = load_firmware(args.join)
-        expected = station_ids(args.station)["MESSAGE_ID1"]
+        expected = station_ids(station)["MESSAGE_ID1"]
         own = getattr(firmware, "MESSAGE_ID1", expected)
         if own != expected:
-            print(f"warning: {args.join} has MESSAGE_ID1 = 0x{own:03X} but station {args.station}'s is "
+            print(f"warning: {args.join} has MESSAGE_ID1 = 0x{own:03X} but station {station}'s is "
                   f"0x{expected:03X}. Two nodes sending one ID with different data destroy each other's "
                   "frames (bit errors): set MESSAGE_ID1 to your station's ID.", file=sys.stderr)
-        classroom.join(firmware, args.station)
-    who = f"; station{args.station} runs {args.join}" if args.join else ""
+        classroom.join(firmware, station)
+    who = f"; station{station} runs {args.join}" if args.join else ""
     print(f"Classroom at exercise {args.exercise}: the master and six stations running "
           f"solutions/ex{args.exercise}.py{who}.", file=out)
     session.run(args.seconds, live=True)
     if session.link is None:
-        session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN)
+        session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN, more="--full-trace prints them")
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
-    for log in session.logs:
-        print(f"wrote {log.path} ({log.written} frames)", file=out)
+    session.print_written()
+
+
+class MonitorTally:
+    """What became of each frame on the bus, as the Demo1 `board` saw it: listed on its serial port (a line in the
+    documented format, or an SLCAN frame), lost on the CAN side (its RAM queue was full: what its `# lost N frames`
+    lines add up to; its RXB0 and RXB1 were full: counted on the bus), or neither. It counts the lines as they leave
+    the board's USART, whether or not a program reads them: what the USB-CDC bridge loses is `UsbCdc.report()`'s."""
+
+    LONGEST_LINE = 256                # the board's longest line is under 70 characters: more is not a line
+
+    def __init__(self, bus: Bus, board: APP023):
+        self.name = board.name
+        self.frames = 0                   # frames that went through on the bus
+        self.not_listening = 0            # of them, sent while the monitor's ECAN was not on the bus
+        self.lost_in_ecan = 0             # of them, lost because RXB0 and RXB1 were full
+        self.listed = 0                   # frame lines on the serial port
+        self.lost_in_queue = 0            # what its '# lost' lines add up to
+        self._line = bytearray()
+        bus.trace.listeners.append(self._event)
+        board.usb.listeners.append(self._byte)
+
+    def _event(self, event: BusEvent) -> None:
+        if not event.ok:
+            return
+        self.frames += 1
+        what = dict(event.received).get(self.name)
+        if what is None:
+            self.not_listening += 1
+        elif what.startswith("lost"):
+            self.lost_in_ecan += 1
+
+    def _byte(self, byte: int, time_ps: int) -> None:
+        if byte not in b"\r\n":
+            if len(self._line) < self.LONGEST_LINE:
+                self._line.append(byte)
+            return
+        line = self._line.decode("latin-1").replace("\0", "")   # C18's putsUSART sends the NUL too
+        self._line.clear()
+        if FRAME_LINE.match(line) or line[:1] in ("t", "T", "r", "R"):
+            self.listed += 1
+        elif line.startswith("#"):
+            self.lost_in_queue += sum(int(n) for n in LOST_COUNT.findall(line))
+
+    @property
+    def lost(self) -> int:
+        """Frames lost on the CAN side: in the board's RAM queue and in its ECAN."""
+        return self.lost_in_queue + self.lost_in_ecan
+
+    def progress(self) -> str:
+        return f"{self.frames:,} frames on the bus: {self.listed:,} listed, {self.lost:,} lost on the CAN side"
+
+    def summary(self) -> str:
+        def share(count: int) -> str:
+            return f"{count:,} ({count / self.frames:.0%})" if self.frames else f"{count:,}"
+
+        neither = self.frames - self.listed - self.lost
+        lines = [f"{self.frames:,} frames on the bus",
+                 f"  {share(self.listed)} listed by the monitor on its serial port",
+                 f"  {share(self.lost)} lost on the CAN side: {self.lost_in_queue:,} when its RAM queue was full "
+                 f"(its '# lost' lines), {self.lost_in_ecan:,} when RXB0 and RXB1 were full"]
+        if neither:
+            lines.append(f"  {share(neither)} neither listed nor said lost: {self.not_listening:,} went by before the "
+                         "monitor listened, the others were still inside it when the run ended (queued, or counted "
+                         "for a '# lost' line not sent yet) or were dropped without a word")
+        return "\n".join(lines)
 
 
 @session_command()
 def cmd_monitor(args: argparse.Namespace, session: Session) -> None:
-    """Demo1: the classroom plus a board running the CAN monitor, its USB-CDC port open on this PC."""
+    """Demo1: the classroom plus a board running the CAN monitor (your firmware, or the solution), its USB-CDC port
+    open on this PC; a tally of every frame, and a port that a program can leave in its own time."""
     out = session.out
     Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
     board = APP023(session.bus, "demo1")
     if args.slcan:
         board.dsw2.on(1)
-    board.run(SOLUTIONS / "demo1_monitor.py")
+    firmware = args.firmware or SOLUTIONS / EXERCISE_FILES["demo1"]
+    board.run(firmware)
+    tally = MonitorTally(session.bus, board)
     try:
         usb = UsbCdc(board, transport=args.transport)
     except OSError as error:
         raise SystemExit(f"appsim: cannot open the USB-CDC port ({args.transport}): {error}") from None
     with usb:
         protocol = "SLCAN (python-can: interface='slcan')" if args.slcan else "text lines, 19200 8N1"
-        print(f"Demo1 CAN monitor on the USB-CDC port {usb.url}  [{protocol}]\n"
+        running = args.firmware or f"the solution, {firmware.name}"
+        print(f"Demo1 CAN monitor ({running}) on the USB-CDC port {usb.url}  [{protocol}]\n"
               f"  open it with: python -m serial.tools.miniterm {usb.url} 19200   (or screen, minicom)\n"
-              f"  running the classroom (exercise {args.exercise}) in real time for {args.seconds:g} s; "
-              "Ctrl-C stops", file=out)
-        session.run(args.seconds, live=False, real_time=True, pollers=(usb.poll,))
-        print(f"{session.bus.trace.frames} frames on the bus\n{usb.report()}", file=out)
+              f"  the classroom (exercise {args.exercise}) runs in real time for {args.seconds:g} s, then stops "
+              "(--seconds to change; Ctrl-C stops sooner)", file=out, flush=True)
+        try:
+            session.run(args.seconds, live=False, real_time=True, pollers=(usb.poll,),
+                        progress=Progress(session.sim, args.seconds,
+                                          lambda: f"{tally.progress()}; USB: {usb.lost_to_pc:,} bytes lost"))
+        finally:            # after Ctrl-C too: what became of the frames, and a port left as a program expects
+            print(f"{tally.summary()}\n{usb.report()}", file=out)
+            session.print_written()
+            out.flush()
+            if usb.in_use():
+                print(f"{usb.url} stays open until the program using it closes it (miniterm: Ctrl-]; Ctrl-C here "
+                      "leaves now)", file=out, flush=True)
+                ended = f"# appsim monitor: the run ended at {session.sim.now / PS_PER_SECOND:.1f} s, nothing more " \
+                        "comes: close the port (miniterm: Ctrl-])\r\n"
+                ignored = usb.linger("" if args.slcan else ended)
+                if ignored:
+                    print(f"  it wrote {ignored} bytes after the run; they reached nothing", file=out)

@@ -87,14 +87,14 @@ class Simulator:
         return self.call_at(self.time() + delay, callback)
 
     # -------------------------------------------------------------- processes
-    def start(self, name: str, main: Callable[[], Any], *, context: contextvars.Context | None = None) -> "Process":
+    def start(self, name: str, main: Callable[[], Any], *, context: contextvars.Context | None = None) -> Process:
         """Start firmware `main` as a process at the current time, in `context` (its context variables)."""
         process = Process(self, name, main, context)
         self.processes.append(process)
         self._make_ready(process)
         return process
 
-    def _make_ready(self, process: "Process") -> None:
+    def _make_ready(self, process: Process) -> None:
         heapq.heappush(self._ready, (process.local_time, next(self._order), process))
 
     # -------------------------------------------------------------- the loop
@@ -200,7 +200,7 @@ class Process(greenlet.greenlet):
     @property
     def failure_text(self) -> str:
         """The failure's traceback, its last `TRACEBACK_FRAMES` frames (a runaway recursion has thousands)."""
-        from appsim.firmware.loader import TRACEBACK_FRAMES     # the firmware's side owns how failures are shown
+        from appsim.firmware.loader import TRACEBACK_FRAMES  # the firmware's side owns how failures are shown
         if self.failure is None:
             return ""
         return "".join(traceback.format_exception(self.failure, limit=-TRACEBACK_FRAMES))

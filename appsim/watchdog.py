@@ -33,7 +33,7 @@ RECURSION_DEPTH = 1000      # Python's own default limit: a firmware deeper than
 
 
 @contextmanager
-def watchdog(sim: "Simulator", seconds: float | None = None) -> Iterator[None]:
+def watchdog(sim: Simulator, seconds: float | None = None) -> Iterator[None]:
     """Watch the firmware `sim` runs, from the main thread (elsewhere, on Windows, or if SIGALRM is taken:
     no watch).
 
@@ -70,7 +70,7 @@ def watchdog(sim: "Simulator", seconds: float | None = None) -> Iterator[None]:
         signal.signal(signal.SIGALRM, signal.SIG_DFL)
 
 
-def what_it_saw(process: "Process", frame: FrameType, seconds: float, cpu_share: float) -> str:
+def what_it_saw(process: Process, frame: FrameType, seconds: float, cpu_share: float) -> str:
     """The watchdog's message: a wait, a recursion or a loop, at which line of the firmware, and what to do."""
     depth, mine = 0, None
     caller: FrameType | None = frame
@@ -118,7 +118,7 @@ def ctrl_c_waits() -> Iterator[None]:
 
 
 @contextmanager
-def ctrl_c_stops_the_run(sim: "Simulator") -> Iterator[None]:
+def ctrl_c_stops_the_run(sim: Simulator) -> Iterator[None]:
     """While `sim` runs, Ctrl-C raises KeyboardInterrupt in the code running the simulator, never in a firmware
     (which could catch it, or would count it as its own crash): the firmware it lands in is frozen where it was.
 

@@ -9,7 +9,7 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from bench import busywait, fullload, grading, linked, pythoncan
+from bench import busywait, fullload, grading, knobs, linked, pythoncan
 from bench.figures import Figure, machine, repeat, table
 
 
@@ -24,12 +24,13 @@ class Config:
     round_trips: int
     class_size: int             # submissions graded by `appsim grade --jobs 2`
     isolation_class: int        # submissions graded sandboxed and --trusted, for the isolation's cost
+    knob_turns: int             # slider moves per exercise notebook
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
-              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4)
+              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
-               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1)
+               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1)
 
 
 def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
@@ -126,6 +127,21 @@ def _linked(config: Config) -> list[Figure]:
     ]
 
 
+def _knobs(config: Config) -> list[Figure]:
+    turns = config.knob_turns
+    each = f"{turns} turn{'' if turns == 1 else 's'} of the master's knob each"
+    before = [t for exercise in knobs.SECONDS for t in knobs.rerun_from_zero_s(exercise, turns)]
+    going_on = [t for exercise in knobs.GOING_ON for t in knobs.turn_s(exercise, turns)]
+    return [
+        Figure("notebook knob turn, as before: the classroom rerun from zero, LCD drawn by matplotlib", "wall s",
+               tuple(before), note=f"Ex1..Ex6 after their notebooks' first runs, {each}"),
+        Figure("notebook knob turn: the live classroom goes on 0.2 s, LCD redrawn (Ex2..Ex6)", "wall s",
+               tuple(going_on), target=0.25, lower_is_better=True, note=f"{each}; the kernel's side"),
+        Figure("notebook knob turn on Ex1: the board restarts (it reads its knob once)", "wall s",
+               tuple(knobs.turn_s("ex1", turns)), target=0.25, lower_is_better=True, note=each),
+    ]
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="a tiny configuration (seconds, not minutes)")
@@ -137,7 +153,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
         config = Config(**{**config.__dict__, "runs": args.runs})
     figures: list[Figure] = []
-    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _linked):
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _linked, _knobs):
         figures += part(config)
     print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
     print(table(figures))

@@ -14,8 +14,8 @@ FULL_LOAD_SECONDS = 0.01
 def _room_lines(exercise: int) -> list[str]:
     from appsim.board.app023 import APP023
     from appsim.bus.wire import Bus
-    from appsim.workshop.classroom import Classroom
     from appsim.sim import Simulator
+    from appsim.workshop.classroom import Classroom
 
     bus = Bus(Simulator(), 125_000)
     room = Classroom(bus, exercise, seed=exercise)

@@ -10,12 +10,12 @@ import time
 from dataclasses import dataclass
 from statistics import mean
 
-from appsim.can.bits import INTERMISSION_BITS, frame_bits
-from appsim.can.bittiming import calculate
 from appsim.board.app023 import APP023
 from appsim.bus.wire import Bus
-from appsim.firmware import *  # noqa: F403  (the nodes are firmware, as the students write it)
+from appsim.can.bits import INTERMISSION_BITS, frame_bits
+from appsim.can.bittiming import calculate
 from appsim.chip.clock import FOSC_HZ
+from appsim.firmware import *
 from appsim.sim import Simulator, ps
 
 BIT_RATE = 1_000_000

@@ -12,11 +12,11 @@ import time
 import can
 
 from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus
-from appsim.workshop.course import MASTER_FIRMWARE, SOLUTIONS
 from appsim.bus.link import BusLink
 from appsim.bus.realtime import WallClock
+from appsim.bus.wire import Bus
 from appsim.sim import Simulator
+from appsim.workshop.course import MASTER_FIRMWARE, SOLUTIONS
 
 EX2_PERIOD_MS = 65536 * 8 * 4 / 40e6 * 1e3      # Timer1 overflow at 1:8 from Fosc/4: 52.4288 ms
 START_UP_S = 0.02                                # CANInitialize on the board, in real time

@@ -8,8 +8,8 @@ This starter prints frames, but it is not a good monitor yet. Run it, watch the 
   TODO 1: SPBRG for 19200 baud at Fosc = 40 MHz with BRGH = 1: baud = Fosc / (16 x (SPBRG + 1)).
   TODO 2: a monitor must not change the bus it watches. In Normal mode this node ACKs every frame
           (a sender alone on the bus would think someone heard it). Which mode never drives the bus?
-  TODO 3: putsUSART waits until the whole line is sent (about 29 ms). What happens to the frames that
-          arrive meanwhile? CANReceiveMessage's flags say when RXB0/RXB1 overflowed: report it.
+  TODO 3: putsUSART waits until the whole line is sent (this one's 44 bytes for a 5-byte frame: 23 ms
+          at 19200 baud, 10 bits a byte). What happens to the frames that arrive meanwhile? CANReceiveMessage's flags say when RXB0/RXB1 overflowed: report it.
 The solution (solutions/demo1_monitor.py) also keeps frames in a queue and counts exactly how many it lost.
 """
 from appsim.firmware import *

@@ -6,6 +6,8 @@ Start from EX3.C:
   1. put the PIC18F8680 in LISTEN ONLY mode with CANSetOperationMode();
   2. pass CAN_CONFIG_ALL_MSG to CANInitialize(), to turn off filter and mask checking (RXM = 11);
   3. loop on CANIsRxReady() until a message with ID 0x088 (the master console's) is received;
+     a correct one: with RXM = 11 the buffers also take frames with errors, which
+     CANReceiveMessage() flags with CAN_RX_INVALID_MSG;
   4. enter CONFIGURATION mode;
   5. run CANInitialize() again with CAN_CONFIG_VALID_STD_MSG, so that only valid standard
      messages pass filter/mask checking;
@@ -51,7 +53,8 @@ def main():
     putsGLCD("TX ID  0x%03X" % MESSAGE_ID1)
     # TODO 1, 2: start in LISTEN ONLY mode, with CAN_CONFIG_ALL_MSG (no filter or mask checking)
     CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL)
-    # TODO 3: loop on CANIsRxReady() until a message with ID 0x088 (the master console's) arrives
+    # TODO 3: loop on CANIsRxReady() until a message with ID 0x088 (the master console's) arrives,
+    #         and not one flagged CAN_RX_INVALID_MSG
     # TODO 4, 5, 6: CONFIGURATION mode, CANInitialization() again with CAN_CONFIG_VALID_STD_MSG, NORMAL
     # Fosc/4 with a 1:8 prescaler: TMR1 overflows every 65536 x 8 x 0.1 us = 52.4288 ms
     OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_8 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)

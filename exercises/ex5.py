@@ -3,9 +3,12 @@
 Goal: ask the master console for its data. Start from EX4.C: when TMR1_OVERFLOW = 1 the node does
 not send its data any more; instead it sends an RTR frame with its assigned ID (RTR_ID, 0x81 ..
 0x86): CANSendMessage() with CAN_TX_RTR_FRAME in the flags and DataLen (3rd argument) = 0. That
-sets TXBnDLC bit 6 (RTR) and DLC<3:0> = 0. On receiving the RTR frame the master sends its A/D
-data with the ID given by the RTR frame: "after sending the RTR frame you immediately receive the
-data sent by the requested ID". If the node works correctly, its LCD shows the master's A/D value.
+sets TXBnDLC bit 6 (RTR) and DLC<3:0> = 0: the workshop's DLC. CAN 2.0 advises the DLC of the data
+frame asked for, 5 here; both work, and the check accepts both. On receiving the RTR frame the
+master sends its A/D data with the ID given by the RTR frame: "after sending the RTR frame you
+immediately receive the data sent by the requested ID". If the node works correctly, LCD line 4
+shows RTR_ID (the answer's ID) and line 3 the master's A/D; line 3 alone proves nothing, since the
+master's 0x088 broadcast carries the same A/D.
 
 Question: your LCD must show the master's answer. Which frames must RXB0 accept now?
 """
@@ -49,10 +52,11 @@ def main():
     setcurGLCD(5, 1)
     putrsGLCD("MODE LISTEN ONLY")
     CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_LISTEN)       # 1, 2: hear everything, send nothing
-    RX_ID1 = 0
-    while RX_ID1 != 0x088:                                          # 3: wait for the master console
-        if CANIsRxReady():
+    heard = False                                                   # 3: wait for a correct frame from the
+    while not heard:                                                #    master: with RXM = 11 the buffers
+        if CANIsRxReady():                                          #    also take frames with errors
             RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            heard = RX_ID1 == 0x088 and not CANMessageFlag & CAN_RX_INVALID_MSG
     CANSetOperationMode(CAN_OP_MODE_CONFIG)                         # 4
     CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL)  # 5, 6: filters set again
     setcurGLCD(5, 1)

@@ -55,10 +55,11 @@ def main():
     setcurGLCD(5, 1)
     putrsGLCD("MODE LISTEN ONLY")
     CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_LISTEN)       # hear everything, send nothing
-    RX_ID1 = 0
-    while RX_ID1 != 0x088:                                          # wait for the master console
-        if CANIsRxReady():
+    heard = False                                                   # wait for a correct frame from the
+    while not heard:                                                #  master: with RXM = 11 the buffers
+        if CANIsRxReady():                                          #  also take frames with errors
             RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            heard = RX_ID1 == 0x088 and not CANMessageFlag & CAN_RX_INVALID_MSG
     CANSetOperationMode(CAN_OP_MODE_CONFIG)
     CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL)  # filters set again
     setcurGLCD(5, 1)

@@ -10,9 +10,11 @@ A line (the kit's format, docs/monitor-format.md):
        12.345678  0x088  STD  DATA  DLC 5  01 02 03 02 9A
 seconds since reset by Timer1 (Fosc/4, 1:8, overflows counted here), identifier, STD/XTD, DATA/RTR.
 
-A line is about 50 bytes, 26 ms at 19200 baud, so a busy bus outruns the USART. Frames wait in a
-queue in RAM; when it is full they are counted and the monitor says how many it lost:
-    # lost 7 frames (queue full: the USART at 19200 baud is slower than the bus)
+A line for a 5-byte frame is 55 bytes: 29 ms at 19200 baud (8N1, 10 bits a byte), while the frame
+held the bus for at most 0.84 ms, so a busy bus outruns the USART. Frames wait in a queue in RAM.
+Once it is full, frames are only counted until it has emptied, and then one short line says how many
+were lost there, so notes take a line in 17 at most, not every other line:
+    # lost 61 frames (queue full)
 
 DSW2 switch 1 ON at reset (RJ0 reads 0): the board is an SLCAN (Lawicel) adapter instead, so a PC
 program such as python-can (`interface="slcan"`) can receive and send frames through it. PC programs
@@ -24,8 +26,8 @@ fills that too: when the FIFO then overruns (OERR), the adapter resets its recei
 refuses the command that lost bytes with BELL, so it always answers the next one.
 """
 from appsim.can import slcan
-from appsim.firmware import *
 from appsim.can.frame import CanFrame
+from appsim.firmware import *
 
 QUEUE_FRAMES = 16             # frames waiting for the USART (13 bytes of RAM each)
 COMMAND_CHARS = 32            # longest SLCAN command: T + 8 + 1 + 16 = 26 characters
@@ -34,7 +36,8 @@ LOST = 0x100                  # among them: here the USART lost bytes (OERR)
 OUTPUT_BYTES = 64             # SLCAN answers and frame lines waiting for the USART
 LONGEST_ANSWER = len(slcan.VERSION) + len(slcan.OK)     # V1013 CR
 
-# SLCAN Sn -> CANSetBaudRate(SJW, BRP, PHSEG1, PHSEG2, PROPSEG) at Fosc = 40 MHz (TQ = 2 * BRP / Fosc).
+# SLCAN Sn -> CANSetBaudRate(SJW, BRP, PHSEG1, PHSEG2, PROPSEG) at Fosc = 40 MHz, BRP as AN738's divider:
+# TQ = 2 * BRP / Fosc = 2 * (BRP<5:0> + 1) / Fosc.
 # S0 (10 kbit/s) needs more than 64 x 25 TQ of 50 ns: the PIC at 40 MHz cannot go that slow.
 SLCAN_TIMING = {
     1: (4, 50, 7, 4, 8),      # 20 kbit/s: 20 TQ of 2.5 us
@@ -47,13 +50,14 @@ SLCAN_TIMING = {
     8: (4, 1, 7, 4, 8),       # 1 Mbit/s: 20 TQ of 50 ns
 }
 
-# SLCAN status flags (F command)
+# SLCAN status flags (F command), Lawicel's bits and names; bit 7 is Lawicel's 'bus error': set here while bus-off
 STATUS_RX_QUEUE_FULL, STATUS_TX_BUSY, STATUS_ERROR_WARNING = 0x01, 0x02, 0x04
 STATUS_OVERRUN, STATUS_ERROR_PASSIVE, STATUS_BUS_ERROR = 0x08, 0x20, 0x80
 
 overflows = 0                 # Timer1 overflows since reset: the high part of the time
 queue = []                    # received frames (time, CANMessage) and ("lost", count) notes
 lost = 0                      # frames dropped since the last queued one
+dropping = False              # the queue filled up: frames are counted, not queued, until it has emptied
 output = bytearray()          # the line being sent, byte by byte
 usart_overruns = 0            # times the USART's receiver overran (OERR): each lost at least one byte from the PC
 received = []                 # SLCAN: bytes from the PC (and LOST marks), oldest first
@@ -77,8 +81,9 @@ def count_overflows():
 
 
 def receive():
-    """Move a received frame from the ECAN to the queue, or count it as lost if the queue is full."""
-    global lost
+    """Move a received frame from the ECAN to the queue; from the time the queue is full until it has emptied,
+    count it as lost instead."""
+    global lost, dropping
     message = CANReceiveMessage()
     if message.flags & CAN_RX_INVALID_MSG:     # RXM = 11 kept what came before an error: not a frame to show;
         while CANIsRxReady():                  # IRXIF is one flag for both buffers, so what waits beside it
@@ -87,6 +92,10 @@ def receive():
     if message.flags & CAN_RX_OVERFLOW:
         queue.append(("overflow", 1))          # the ECAN dropped at least one frame before this one
     if len(queue) >= QUEUE_FRAMES:
+        dropping = True
+    elif not queue:
+        dropping = False
+    if dropping:
         lost += 1
         return
     if lost:
@@ -108,10 +117,9 @@ def seconds_text(ticks):
 def monitor_line(entry):
     stamp, message = entry
     if stamp == "lost":
-        return (f"# lost {message} frame{'s' if message > 1 else ''} "
-                "(queue full: the USART at 19200 baud is slower than the bus)\r\n")
+        return f"# lost {message} frame{'s' if message > 1 else ''} (queue full)\r\n"
     if stamp == "overflow":
-        return "# lost frames (receive buffers overflowed: the firmware did not read RXB0/RXB1 in time)\r\n"
+        return "# lost frames (RXB0/RXB1 overflowed)\r\n"
     extended = message.flags & CAN_RX_XTD_FRAME
     remote = message.flags & CAN_RX_RTR_FRAME
     ident = f"0x{message.id:08X}" if extended else f"0x{message.id:03X}"

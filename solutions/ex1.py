@@ -14,8 +14,13 @@ Question: will RXB0 receive the data you sent? Normally, no! Why?
 Answer: Loopback keeps the acceptance logic. A frame reaches RXB0 only if it passes RXF0 or RXF1
 under mask RXM0 (or RXB1 through RXF2..RXF5 under RXM1). With mask 0x7FF every identifier bit is
 compared, and the starter's RX_Filter0 = 0x088 is not MESSAGE_ID1 = 0x100, so the frame is dropped.
-Three fixes work: set the filter equal to MESSAGE_ID1 (this file), relax the mask, or set
-RXBnCON.RXM = 11 (CAN_CONFIG_ALL_MSG), which overrides masks and filters.
+The workshop's three fixes each work: (a) set the mask and filter correctly (a filter equal to
+MESSAGE_ID1, or a mask that does not compare the bits where they differ); (b) set RXBnCON.RXM = 11
+(CAN_CONFIG_ALL_MSG), which overrides masks and filters; (c) set MESSAGE_ID1 and RX_Filter0 to the
+same value: the filter to MESSAGE_ID1 (as this file does), or MESSAGE_ID1 to 0x088, the filter's
+value. Off the bus, in Loopback mode, any 11-bit identifier will do; from EX2 on, MESSAGE_ID1 is
+the station's (0x100 .. 0x150), since 0x088 is the master console's and one identifier's data
+frames come from one node only.
 """
 from appsim.firmware import *
 

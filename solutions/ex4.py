@@ -6,6 +6,8 @@ Start from EX3.C:
   1. put the PIC18F8680 in LISTEN ONLY mode with CANSetOperationMode();
   2. pass CAN_CONFIG_ALL_MSG to CANInitialize(), to turn off filter and mask checking (RXM = 11);
   3. loop on CANIsRxReady() until a message with ID 0x088 (the master console's) is received;
+     a correct one: with RXM = 11 the buffers also take frames with errors, which
+     CANReceiveMessage() flags with CAN_RX_INVALID_MSG;
   4. enter CONFIGURATION mode;
   5. run CANInitialize() again with CAN_CONFIG_VALID_STD_MSG, so that only valid standard
      messages pass filter/mask checking;
@@ -14,13 +16,17 @@ Start from EX3.C:
 Question: why listen first, and what must be done again after the second CANInitialize()?
 
 Answer: Listen-only receives but never drives the bus: no frames, no ACK, no error flags. A node
-with a wrong bit rate or a wrong setting stays harmless there, and hearing the master's 0x088
-proves the bit timing matches the bus before the node sends anything. CANInitialize() itself ends
-in NORMAL mode and sets both masks to 0 (accept everything), so the Listen request must come after
-it, and after the second CANInitialize() the masks and RX_Filter0 = 0x088 must be set again in
-CONFIGURATION mode, or RXB0 takes every valid standard frame on the bus. One more reason to keep
-the order strict: between CANInitialize()'s return and the Listen request the module is in NORMAL
-mode for at least 11 bit times, and could ACK a frame that passes by.
+with a wrong bit rate or a wrong setting stays harmless there, and a correct 0x088 from the master
+proves the bit timing matches the bus before the node sends anything. Correct, because with
+CAN_CONFIG_ALL_MSG (RXM = 11) the buffers also take frames with errors: the loop does not count a
+frame whose flags have CAN_RX_INVALID_MSG. CANInitialize() itself ends in NORMAL mode and sets both
+masks to 0 (accept everything), so the Listen request must come after it, and after the second
+CANInitialize() the masks and RX_Filter0 = 0x088 must be set again in CONFIGURATION mode, or RXB0
+takes every valid standard frame on the bus. One more reason to keep the order strict: from
+CANInitialize()'s return until the next mode request takes effect, the module is in NORMAL mode.
+On an idle bus that is a few instruction cycles, but a mode changes only when the bus is idle, so a
+frame that starts meanwhile keeps it in NORMAL mode to the frame's end: it ACKs the frame if it
+reads it right, and with a wrong bit timing it sends error flags that destroy it.
 """
 from appsim.firmware import *
 
@@ -61,10 +67,11 @@ def main():
     setcurGLCD(5, 1)
     putrsGLCD("MODE LISTEN ONLY")
     CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_LISTEN)       # 1, 2: hear everything, send nothing
-    RX_ID1 = 0
-    while RX_ID1 != 0x088:                                          # 3: wait for the master console
-        if CANIsRxReady():
+    heard = False                                                   # 3: wait for a correct frame from the
+    while not heard:                                                #    master: with RXM = 11 the buffers
+        if CANIsRxReady():                                          #    also take frames with errors
             RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            heard = RX_ID1 == 0x088 and not CANMessageFlag & CAN_RX_INVALID_MSG
     CANSetOperationMode(CAN_OP_MODE_CONFIG)                         # 4
     CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL)  # 5, 6: filters set again
     setcurGLCD(5, 1)

@@ -16,7 +16,12 @@ filters RXF2..RXF5 under mask RXM1, so one of them must equal MESSAGE_ID1 for th
 RXB1 at all. The mask must compare every ID bit that tells your ID from the others on the bus:
 with mask 0 RXB1 would take every frame, and only the software test RX_ID2 == MESSAGE_ID1 would
 keep the node from answering the other stations' requests; 0x7FF compares all 11 bits. The
-CAN_RX_RTR_FRAME test matters too: a data frame with your ID is not a request.
+CAN_RX_RTR_FRAME test matters too, though on a correct bus it never meets a data frame with your
+ID: only one node sends the data frames of an identifier, and that is you. A faulty node might send
+one (the check plays such a node), and a data frame is not a request. RXB1CONbits.RXFUL says a
+frame waits in RXB1, but CANReceiveMessage() always takes RXB0 first: if the master's 0x088 came
+into RXB0 in between, that is what the RXB1 branch reads, and RX_ID2 == MESSAGE_ID1 keeps it from
+being answered (RXB1 is read on the next turn).
 """
 from appsim.firmware import *
 
@@ -63,10 +68,11 @@ def main():
     setcurGLCD(5, 1)
     putrsGLCD("MODE LISTEN ONLY")
     CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_LISTEN)       # hear everything, send nothing
-    RX_ID1 = 0
-    while RX_ID1 != 0x088:                                          # wait for the master console
-        if CANIsRxReady():
+    heard = False                                                   # wait for a correct frame from the
+    while not heard:                                                #  master: with RXM = 11 the buffers
+        if CANIsRxReady():                                          #  also take frames with errors
             RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
+            heard = RX_ID1 == 0x088 and not CANMessageFlag & CAN_RX_INVALID_MSG
     CANSetOperationMode(CAN_OP_MODE_CONFIG)
     CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL)  # filters set again
     setcurGLCD(5, 1)

@@ -4,10 +4,10 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
+from appsim.can.frame import CanFrame
 from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import Filter, filter_matches, pack_id, raw29, unpack_id
 from appsim.chip.ecan.controller import ECAN
-from appsim.can.frame import CanFrame
 
 TRUTH_TABLE = {  # (mask bit, filter bit, identifier bit) -> accept, as DS39500 prints it
     (0, 0, 0): True, (0, 0, 1): True, (0, 1, 0): True, (0, 1, 1): True,

@@ -6,6 +6,8 @@ from collections.abc import Callable
 import pytest
 
 from appsim.chip.adc import ADC
+from appsim.chip.mcu import PIC18F8680
+from appsim.firmware import Delay10KTCYx
 from appsim.firmware.adc import (
     ADC_1ANA,
     ADC_16ANA,
@@ -34,8 +36,6 @@ from appsim.firmware.adc import (
     ReadADC,
     SetChanADC,
 )
-from appsim.firmware import Delay10KTCYx
-from appsim.chip.mcu import PIC18F8680
 from appsim.sim import Simulator
 
 TOSC_PS = 25_000                            # Fosc = 40 MHz

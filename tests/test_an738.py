@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import pytest
 
-from appsim.firmware.an738 import AN738Error
 from appsim.chip.ecan import registers as R
-from appsim.firmware import *  # noqa: F403
 from appsim.chip.sfr import NotOnABoard
+from appsim.firmware import *
+from appsim.firmware.an738 import AN738Error
 
 CLASSROOM = (4, 10, 8, 4, 3)      # SJW, BRP, PHSEG1, PHSEG2, PROPSEG: 125 kbit/s at 40 MHz
 

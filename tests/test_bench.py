@@ -26,6 +26,9 @@ ROWS = (
     "appsim grade: a class of 2 with --jobs 2",
     "linked: Ex2 frame spacing at a python-can peer",
     "linked: RTR round trip peer -> master -> peer",
+    "notebook knob turn, as before: the classroom rerun from zero, LCD drawn by matplotlib",
+    "notebook knob turn: the live classroom goes on 0.2 s, LCD redrawn (Ex2..Ex6)",
+    "notebook knob turn on Ex1: the board restarts (it reads its knob once)",
 )
 
 

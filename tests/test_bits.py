@@ -20,6 +20,7 @@ from appsim.can.bits import (
     frame_bits,
     frame_time,
     frame_time_ps,
+    max_frame_bits,
 )
 from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
 
@@ -242,8 +243,14 @@ def test_length_stays_within_the_worst_case_stuffing_bound(frame: CanFrame) -> N
         bound = 64 + 8 * n + (54 + 8 * n - 1) // 4
     else:
         bound = 44 + 8 * n + (34 + 8 * n - 1) // 4
-    assert frame_bits(frame) <= bound
+    assert frame_bits(frame) <= bound == max_frame_bits(n, extended=frame.extended)
     assert frame_bits(frame) <= (157 if frame.extended else 132)
+
+
+def test_the_longest_frames_are_the_chapters_132_and_157_bits_and_a_remote_frame_52():
+    assert (max_frame_bits(8), max_frame_bits(8, extended=True), max_frame_bits(0)) == (132, 157, 52)
+    with pytest.raises(ValueError, match="0 to 8 data bytes"):
+        max_frame_bits(9)
 
 
 @settings(max_examples=400)

@@ -260,8 +260,20 @@ def test_calculator_at_20_mhz_125k_with_sjw_1_lists_examples_9_2_and_9_3() -> No
     assert {t.sjw for t in timings} == {1}
 
 
-def test_calculator_default_sjw_is_the_largest_legal_min_4_ps2() -> None:
-    assert all(s.timing.sjw == min(4, s.timing.seg2ph) for s in calculate(125_000, 20 * MHZ))
+def test_calculator_default_sjw_is_the_largest_iso_11898_allows_min_4_ps1_ps2() -> None:
+    solutions = calculate(125_000, 20 * MHZ)
+    assert all(s.timing.sjw == min(4, s.timing.seg1ph, s.timing.seg2ph) for s in solutions)
+    assert any(s.timing.seg1ph < min(4, s.timing.seg2ph) for s in solutions), "rows where the data sheet alone allows more"
+    assert all(s.timing.iso_sjw for s in solutions)
+
+
+def test_a_fixed_sjw_above_phase_segment_1_is_listed_with_the_iso_rule_it_breaks() -> None:
+    solutions = calculate(1_000_000, 40 * MHZ, sjw=2)
+    table = format_table(solutions).splitlines()
+    assert "SJW <= min(PS1, PS2) (ISO 11898-1)" in table[0]
+    short_ps1 = [row for s, row in zip(solutions, table[2:]) if s.timing.seg1ph < 2]
+    assert short_ps1 and all(row.endswith("SJW > PS1: breaks ISO 11898-1 (the PIC accepts it)") for row in short_ps1)
+    assert all("ISO" not in row for s, row in zip(solutions, table[2:]) if s.timing.seg1ph >= 2)
 
 
 def test_calculator_order_is_error_then_sample_point_then_more_tq() -> None:

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from appsim.bus.controller import Mode
-from appsim.firmware import *  # noqa: F403
+from appsim.firmware import *
 
 CLASSROOM = (4, 10, 8, 4, 3)
 

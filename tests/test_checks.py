@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from appsim.firmware.loader import load_firmware
 from appsim.workshop.checks import EXERCISES, CheckResult, Verdict, check, check_names
 from appsim.workshop.checks.trial import Trial, resolve
-from appsim.firmware.loader import load_firmware
 
 KIT = Path(__file__).resolve().parent.parent
 
@@ -112,6 +112,16 @@ def test_a_crash_gives_zero_with_the_error_and_the_line(tmp_path):
                       "            read_potentiometer()\n            TxData[5] = 0\n")
     line = crash.read_text().splitlines().index("            TxData[5] = 0") + 1
     zero_with(check("ex2", crash, seed=1), "crashed", f"line {line}", "IndexError: list assignment index out of range")
+
+
+def test_a_typo_crashes_on_its_line_with_pythons_did_you_mean(tmp_path):
+    typo = copy_with(tmp_path, "ex3", "CANSetFilter(CAN_FILTER_B1_F1,", "CANSetFliter(CAN_FILTER_B1_F1,")
+    line = next(n for n, text in enumerate(typo.read_text().splitlines(), 1) if "CANSetFliter" in text)
+    zero_with(check("ex3", typo, seed=1), f"crashed at line {line}",
+              "NameError: name 'CANSetFliter' is not defined. Did you mean: 'CANSetFilter'?")
+    early = copy_with(tmp_path, "ex1", "TxData = [0x01,", "TxData = [CAN_TX_PRIORTY_0,")
+    zero_with(check("ex1", early, seed=1), "before main() ran",
+              "NameError: name 'CAN_TX_PRIORTY_0' is not defined. Did you mean: 'CAN_TX_PRIORITY_0'? Only constants")
 
 
 def test_a_library_error_is_a_crash_with_the_libraries_words(tmp_path):

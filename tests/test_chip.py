@@ -4,7 +4,7 @@ from __future__ import annotations
 from appsim.bus.wire import Bus
 from appsim.chip.mcu import PIC18F8680
 from appsim.chip.sfr import ADDRESSES
-from appsim.firmware import *  # noqa: F403 -- firmware reads like the workshop's C
+from appsim.firmware import *
 from appsim.sim import Simulator
 from appsim.workshop.classroom import Classroom
 

@@ -10,10 +10,10 @@ import pytest
 from workshop import KIT, MS, classroom, payload, sent
 
 from appsim.bus.wire import Bus
-from appsim.workshop.classroom import Classroom
-from appsim.workshop.course import station_ids
 from appsim.firmware.loader import FirmwareError, constants, load_firmware
 from appsim.sim import Simulator
+from appsim.workshop.classroom import Classroom
+from appsim.workshop.course import station_ids
 
 STATION_IDS = [0x100, 0x110, 0x120, 0x130, 0x140, 0x150]
 

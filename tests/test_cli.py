@@ -80,13 +80,71 @@ def test_joining_with_another_stations_id_warns_and_the_bus_shows_why(tmp_path):
 @pytest.mark.parametrize("argv, complaint", [
     (["board", "no/such/file.py"], "no/such/file.py"),
     (["board", "exercises/ex1.py", "--potentiometer", "2000"], "0..1023"),
-    (["classroom", "--exercise", "7"], "exercises 1..6"),
+    (["classroom", "--exercise", "7"], "the classroom's stations run Ex1..Ex6 (1..6, ex1..ex6); got '7'"),
     (["classroom", "--station", "9"], "stations are numbered 1..6"),
     (["board", "exercises/ex1.py", "--interface", "nonsense", "--channel", "x"], "cannot open the python-can bus"),
 ])
 def test_bad_input_gets_a_clear_error(argv, complaint):
     result = appsim(*argv, cwd=KIT)
     assert result.returncode != 0 and complaint in result.stderr
+
+
+@pytest.mark.parametrize("argv, complaint", [
+    (["board", "exercises/ex1.py", "--potentiometer", "abc"],
+     "argument --potentiometer: the potentiometer on AN0 gives a 10-bit A/D value, a whole number 0..1023; got 'abc'"),
+    (["board", "exercises/ex1.py", "--seconds", "0"],
+     "argument --seconds: a run lasts more than 0 and at most 86400 seconds (a day); got 0"),
+    (["classroom", "--seconds", "nan"], "a run lasts more than 0 and at most 86400 seconds (a day); got nan"),
+    (["classroom", "--station", "2"], "--station says which station your firmware takes, so it goes with --join: "
+                                      "--join my_ex3.py --station 2"),
+    (["classroom", "--exercise", "demo1"], "Demo1, the monitor, runs with: appsim monitor"),
+    (["monitor", "--exercise", "x"], "the classroom's stations run Ex1..Ex6 (1..6, ex1..ex6); got 'x'"),
+    (["check", "ex9"], "argument EXERCISE: exercise 'ex9' does not exist: the workshop has Ex1..Ex6 (1..6, ex1..ex6) "
+                       "and demo1"),
+    (["demo", "--seed", "x"], "argument --seed: a seed is a whole number, e.g. 2024; got 'x'"),
+    (["grade", "class", "--time-limit", "0"], "the time limit is CPU seconds, more than 0 and at most 3600"),
+    (["grade", "class", "--jobs", "two"], "--jobs is how many exercises are graded at once, a whole number: 1 or more; "
+                                          "got 'two'"),
+    (["bittiming", "0"], "classic CAN runs at 1 bit/s .. 1,000,000 bit/s (1 Mbit/s, ISO 11898): give the bit rate in "
+                         "bit/s, e.g. 125000; got 0"),
+    (["bittiming", "2000000"], "classic CAN runs at 1 bit/s .. 1,000,000 bit/s (1 Mbit/s, ISO 11898)"),
+    (["bittiming", "125k"], "give the bit rate in bit/s, e.g. 125000; got '125k'"),
+    (["bittiming", "--fosc", "80000000"], "Fosc is the PIC18F8680's clock in Hz, 1 .. 40,000,000 (the data sheet's "
+                                          "40 MHz)"),
+    (["bittiming", "--top", "0"], "--top is how many settings to list, a whole number: 1 or more; got 0"),
+])
+def test_a_usage_error_is_said_in_the_workshops_words_with_status_2(argv, complaint):
+    result = appsim(*argv, cwd=KIT)
+    assert result.returncode == 2 and complaint in result.stderr, result.stderr
+    assert result.stderr.splitlines()[-1].startswith(f"appsim {argv[0]}: error: ")
+    assert "Traceback" not in result.stderr and not re.search(r"invalid \w+ value", result.stderr), \
+        "no argparse internals"
+
+
+@pytest.mark.parametrize("exercise", ["3", "ex3", "EX3", " Ex3 "])
+def test_an_exercise_is_3_ex3_or_EX3_everywhere(exercise):
+    checked = appsim("check", exercise, str(KIT / "solutions" / "ex3.py"), "--seed", "3")
+    assert checked.returncode == 0 and "EX3: 5/5 (seed 3)" in checked.stdout, checked.stderr
+    room = appsim("classroom", "--exercise", exercise, "--seconds", "0.05")
+    assert room.returncode == 0 and "Classroom at exercise 3:" in room.stdout
+
+
+def test_frames_past_the_first_40_are_said_to_be_in_the_log_only_when_there_is_one(tmp_path):
+    alone = appsim("classroom", "--exercise", "2", "--seconds", "1")
+    assert re.search(r"\.\.\. \d+ more frames \(--log trace.log keeps them; --full-trace prints them\)", alone.stdout)
+    assert "see the trace log" not in alone.stdout
+    logged = appsim("classroom", "--exercise", "2", "--seconds", "1", "--log", str(tmp_path / "t.blf"))
+    assert re.search(rf"\.\.\. \d+ more frames \(all of them are in {tmp_path}/t.blf; --full-trace prints them\)",
+                     logged.stdout)
+    assert re.search(rf"wrote {tmp_path}/t.blf \(Vector BLF, \d+ frames\)", logged.stdout)
+
+
+def test_bittiming_lists_settings_within_the_iso_rule_on_sjw():
+    result = appsim("bittiming", "1000000", "--top", "40")
+    assert result.returncode == 0 and "SJW <= min(PS1, PS2) (ISO 11898-1)" in result.stdout
+    rows = [line.split() for line in result.stdout.splitlines()[2:]]
+    assert len(rows) == 36 and all(int(sjw) <= min(int(ps1), int(ps2)) for _, _, _, _, ps1, ps2, sjw, *_ in rows), \
+        "every setting at 40 MHz, none with SJW above PS1"
 
 
 def test_check_gives_the_verdict_and_exit_status_a_script_can_use():
@@ -103,7 +161,7 @@ def test_monitor_opens_demo1s_port_and_closes_its_link(capsys):
                      "--interface", "virtual", "--channel", "cli-monitor"]) == 0
         seen = list(iter(lambda: peer.recv(timeout=0), None))
     out = capsys.readouterr().out
-    assert "Demo1 CAN monitor on the USB-CDC port socket://127.0.0.1:" in out
+    assert "Demo1 CAN monitor (the solution, demo1_monitor.py) on the USB-CDC port socket://127.0.0.1:" in out
     assert "link outside (Virtual bus channel cli-monitor):" in out, "the link's report, printed as it closes"
     assert len(seen) > 5 and {m.arbitration_id for m in seen} >= {0x088, 0x100}
 
@@ -162,8 +220,11 @@ def test_an_outside_frame_shorter_than_a_students_firmware_reads_is_reported_in_
     unguarded = tmp_path / "ex3.py"
     unguarded.write_text((KIT / "solutions" / "ex3.py").read_text().replace("if DataLen >= 5:", "if True:"))
     with can.Bus(interface="virtual", channel="cli-short") as peer:
-        later = threading.Timer(0.3, lambda: peer.send(can.Message(arbitration_id=0x088, data=[1],
-                                                                   is_extended_id=False)))
+        def short_frame_once_linked():                 # the classroom's first frame out here: the link is up
+            peer.recv(timeout=30)
+            peer.send(can.Message(arbitration_id=0x088, data=[1], is_extended_id=False))
+
+        later = threading.Thread(target=short_frame_once_linked)
         later.start()
         status = main(["classroom", "--exercise", "3", "--join", str(unguarded), "--interface", "virtual",
                        "--channel", "cli-short", "--seconds", "0.6"])

@@ -2,20 +2,22 @@
 from __future__ import annotations
 
 import os
+import pty
 import re
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
+import pytest
 import serial
 
 from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus
-from appsim.firmware import *  # noqa: F403
-from appsim.chip.mcu import PIC18F8680
-from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.board.usbcdc import UsbCdc
+from appsim.bus.wire import Bus
+from appsim.chip.mcu import PIC18F8680
+from appsim.firmware import *
+from appsim.sim import PS_PER_SECOND, Simulator
 
 KIT = Path(__file__).resolve().parent.parent
 SOLUTION = KIT / "solutions" / "demo1_monitor.py"
@@ -25,7 +27,7 @@ CLASSROOM = (4, 10, 8, 4, 3)
 # The documented line format (docs/monitor-format.md).
 FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD)  (DATA|RTR )  DLC (\d+)"
                         r"((?:  [0-9A-F]{2}(?: [0-9A-F]{2})*)?)$")
-LOST_LINE = re.compile(r"^# lost (\d+) frames? \(queue full: the USART at 19200 baud is slower than the bus\)$")
+LOST_LINE = re.compile(r"^# lost (\d+) frames? \(queue full\)$")
 
 
 def sender(frames, *, start_ms: float, gap_ms: float):
@@ -191,3 +193,91 @@ def test_appsim_monitor_counts_the_bytes_lost_each_way_and_says_why():
     to_pc = re.search(r"board -> PC: (\d+) bytes, (\d+) of them lost \((.*)\)", out)
     assert to_pc and int(to_pc[2]) > 0 and "no program had the port open" in to_pc[3], out
     assert "PC -> board: 60 bytes, 58 of them lost (58: the board's USART did not take them" in out
+
+
+def monitor(*argv: str, **popen) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "appsim", "monitor", *argv], stdout=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"}, **popen)
+
+
+def test_appsim_monitor_runs_your_own_demo1_and_its_summary_says_what_became_of_every_frame(tmp_path):
+    """The summary separates frames lost on the CAN side from bytes lost on USB; a firmware that drops frames without
+    a '# lost' line shows as frames neither listed nor said lost."""
+    silent = tmp_path / "my_demo1.py"
+    silent.write_text(SOLUTION.read_text().replace("        lost += 1\n", ""))
+    runs = {}
+    for name, argv in (("solution", ()), ("silent", ("--firmware", str(silent)))):
+        command = monitor("--seconds", "3", "--transport", "socket", *argv, stderr=subprocess.PIPE)
+        out, err = command.communicate(timeout=60)
+        assert command.returncode == 0 and "Traceback" not in err, err
+        runs[name] = out
+    start = "the classroom (exercise 2) runs in real time for 3 s, then stops (--seconds to change; Ctrl-C stops"
+    assert "Demo1 CAN monitor (the solution, demo1_monitor.py)" in runs["solution"] and start in runs["solution"]
+    assert f"Demo1 CAN monitor ({silent})" in runs["silent"]
+    summary = re.compile(r"(\d+) frames on the bus\n"
+                         r"  (\d+) \(\d+%\) listed by the monitor on its serial port\n"
+                         r"  (\d+) \(\d+%\) lost on the CAN side: (\d+) when its RAM queue was full \(its '# lost' "
+                         r"lines\), (\d+) when RXB0 and RXB1 were full\n"
+                         r"(?:  (\d+) \(\d+%\) neither listed nor said lost.*\n)?"
+                         r"USB-CDC port socket")
+    summaries = {name: summary.search(out) for name, out in runs.items()}
+    frames, listed, lost, queue, ecan, neither = (int(n or 0) for n in summaries["solution"].groups())
+    assert frames == 401 and listed > 90 and lost == queue > 250 and ecan == 0 and neither < 20
+    frames, listed, lost, queue, ecan, neither = (int(n or 0) for n in summaries["silent"].groups())
+    assert frames == 401 and lost == 0 and neither > 250, "dropped without a word: the summary says so"
+
+
+def test_appsim_monitor_shows_its_progress_on_a_terminal():
+    main_end, terminal = os.openpty()
+    command = monitor("--seconds", "2.5", "--transport", "socket", stderr=terminal)
+    os.close(terminal)
+    shown = bytearray()
+    while True:
+        try:
+            chunk = os.read(main_end, 4096)
+        except OSError:                        # EIO: the command has closed its end
+            break
+        if not chunk:
+            break
+        shown += chunk
+    os.close(main_end)
+    command.communicate(timeout=30)
+    updates = re.findall(rb"\r +([\d.]+) / 2.5 s  ([\d,]+) frames on the bus: ([\d,]+) listed, ([\d,]+) lost on the "
+                         rb"CAN side; USB: ([\d,]+) bytes lost", bytes(shown))
+    assert len(updates) >= 2 and float(updates[-1][0]) >= 1.0 and int(updates[-1][2]) > 0, shown
+    assert bytes(shown).endswith(b"\r\n"), "the line ends when the run does"
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="a pty")
+def test_miniterm_on_the_monitors_port_ends_without_a_traceback_when_the_monitor_ends():
+    """The run ends while miniterm has the port open: the port stays, miniterm shows the notice, its user leaves with
+    Ctrl-] (exit status 0), and only then does the monitor close the port."""
+    command = monitor("--seconds", "2", stderr=subprocess.PIPE)
+    port = re.search(r"/dev/pts/\d+", command.stdout.readline()).group()
+    child, terminal = pty.fork()
+    if child == 0:                                                     # miniterm needs a terminal of its own
+        os.execv(sys.executable, [sys.executable, "-m", "serial.tools.miniterm", port, "19200"])
+    shown, said = bytearray(), ""
+    try:
+        while "stays open until the program using it closes it" not in said:
+            said += command.stdout.readline()
+            assert command.poll() is None, said
+        while b"# appsim monitor: the run ended at 2.0 s, nothing more comes" not in shown:
+            shown += os.read(terminal, 4096)
+        os.write(terminal, b"\x1d")                                    # Ctrl-]
+        while True:
+            try:
+                chunk = os.read(terminal, 4096)
+            except OSError:
+                break
+            if not chunk:
+                break
+            shown += chunk
+        _, status = os.waitpid(child, 0)
+        out, err = command.communicate(timeout=30)
+    finally:
+        command.kill()
+        os.close(terminal)
+    text = shown.decode(errors="replace")
+    assert os.waitstatus_to_exitcode(status) == 0 and "Traceback" not in text and "--- exit ---" in text, text
+    assert command.returncode == 0 and "Traceback" not in err

@@ -1,10 +1,10 @@
 """The ECAN register file on its own: addresses, reset values, access rules, windows, ICODE."""
 from __future__ import annotations
 
-from appsim.chip.ecan import registers as R
 from appsim.bus.controller import Mode
-from appsim.chip.ecan.controller import ECAN
 from appsim.can.frame import CanFrame
+from appsim.chip.ecan import registers as R
+from appsim.chip.ecan.controller import ECAN
 
 
 def addr(name: str) -> int:
@@ -268,6 +268,7 @@ def test_bus_off_recovers_after_128_sequences_of_11_recessive_bits():
 
 def test_ecancon_other_than_mode_0_is_refused_with_an_explanation():
     import pytest
+
     from appsim.chip.ecan.controller import UnsupportedMode
     ecan = ECAN()
     with pytest.raises(UnsupportedMode, match="legacy Mode 0"):

@@ -42,7 +42,7 @@ def test_crc_error_flag_starts_after_the_ack_delimiter_rule_1_plus_1_rule_2_plus
     a, b, c = three_nodes(world)
     world.bus.inject("b", "crc")
     event = until_events(world, 1)
-    assert event.error.startswith(f"CRC error at bit {ACK_DELIMITER}") and event.flag_bit == ACK_DELIMITER + 1
+    assert event.error.startswith(f"CRC error at bit {ACK_DELIMITER}") and event.flag_at_bit == ACK_DELIMITER + 1
     # b flags at EOF1; a and c see that dominant EOF bit (form error) and flag one bit later, so b sees dominant
     # right after its own flag (rule 2: +8 on its +1); c only +1 (rule 1); a, the transmitter, +8 (rule 3).
     assert counters(a, b, c) == [(8, 0), (0, 9), (0, 1)]
@@ -53,7 +53,7 @@ def test_bit_error_flag_starts_at_the_next_bit_and_receivers_see_a_stuff_error(w
     a, b, c = three_nodes(world)
     world.bus.inject("a", "bit", 20)
     event = until_events(world, 1)
-    assert event.error.startswith("bit error at bit 20") and event.flag_bit == 21
+    assert event.error.startswith("bit error at bit 20") and event.flag_at_bit == 21
     assert dict(event.received)["b"].startswith("stuff error at bit 26")     # 6 dominant bits from 21
     assert counters(a, b, c) == [(8, 0), (0, 1), (0, 1)]
 
@@ -62,7 +62,7 @@ def test_stuff_error_flag_starts_at_the_next_bit(world):
     a, b, c = three_nodes(world)
     world.bus.inject("c", "stuff", 30)
     event = until_events(world, 1)
-    assert event.error.startswith("stuff error at bit 30") and event.flag_bit == 31
+    assert event.error.startswith("stuff error at bit 30") and event.flag_at_bit == 31
     assert counters(a, b, c) == [(8, 0), (0, 1), (0, 9)]
 
 
@@ -71,13 +71,13 @@ def test_form_error_in_the_end_of_frame(world):
     world.bus.inject("b", "form", ACK_DELIMITER + 2)       # EOF bit 2 read dominant
     event = until_events(world, 1)
     assert event.error.startswith(f"form error at bit {ACK_DELIMITER + 2}: end-of-frame bit 2")
-    assert event.flag_bit == ACK_DELIMITER + 3 and counters(a, b, c) == [(8, 0), (0, 9), (0, 1)]
+    assert event.flag_at_bit == ACK_DELIMITER + 3 and counters(a, b, c) == [(8, 0), (0, 9), (0, 1)]
 
 
 def test_ack_error_flag_starts_at_the_ack_delimiter(world):
     a = world.node("a", normal_node([(0x100, CAN_TX_PRIORITY_0)]))
     event = until_events(world, 1)
-    assert event.error.startswith(f"ACK error at bit {ACK_DELIMITER - 1}") and event.flag_bit == ACK_DELIMITER
+    assert event.error.startswith(f"ACK error at bit {ACK_DELIMITER - 1}") and event.flag_at_bit == ACK_DELIMITER
     assert event.end_ps - event.start_ps == (ACK_DELIMITER + 6 + 8) * world.bus.bit_ps
     assert a.ecan.tec == 8
 
@@ -205,7 +205,7 @@ def test_two_active_nodes_same_identifier_bit_error_at_the_first_differing_bit(w
     assert encode(frame_b)[differ] == 1 and differ > 13, "b sends recessive there, after arbitration"
     event = until_events(world, 2)
     assert event.error.startswith(f"bit error at bit {differ}") and "(b)" in event.error
-    assert event.flag_bit == differ + 1 and "two nodes sent identifier 0x100" in event.error
+    assert event.flag_at_bit == differ + 1 and "two nodes sent identifier 0x100" in event.error
     assert a.ecan.tec == 8 and b.ecan.tec == 8
 
 

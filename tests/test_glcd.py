@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from appsim.board.app023 import APP023
-from appsim.firmware import GLCD_Initial, putcGLCD, putrsGLCD, putsGLCD, setcurGLCD
 from appsim.board.glcd import CHARACTER_CYCLES, NotInitialised
+from appsim.firmware import GLCD_Initial, putcGLCD, putrsGLCD, putsGLCD, setcurGLCD
 
 TCY_PS = 100_000
 

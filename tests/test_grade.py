@@ -316,9 +316,9 @@ def test_an_output_path_of_the_wrong_kind_is_refused_before_anything_is_graded(t
 
 
 @pytest.mark.parametrize("args, words", [
-    (["--jobs", "0"], "--jobs is how many exercises are graded at once: 1 or more"),
-    (["--jobs", "two"], "--jobs is a whole number"),
-    (["--time-limit", "0"], "between 0 and 3600"),
+    (["--jobs", "0"], "--jobs is how many exercises are graded at once, a whole number: 1 or more; got 0"),
+    (["--jobs", "two"], "--jobs is how many exercises are graded at once, a whole number: 1 or more; got 'two'"),
+    (["--time-limit", "0"], "the time limit is CPU seconds, more than 0 and at most 3600 (an hour); got 0"),
 ])
 def test_bad_numbers_are_refused_in_words(tmp_path, args, words):
     small_class(tmp_path / "class", ("alice",))
@@ -377,12 +377,19 @@ def test_ctrl_c_ends_with_one_line_exit_130_and_keeps_what_was_graded(tmp_path):
     assert kept and kept == [line.split()[1] for line in out.splitlines() if line.startswith("[")]
 
 
+def _graded(tmp_path: Path, files: dict[str, dict[str, str]], limits: Limits) -> dict[str, dict]:
+    """Each submission's exercises, graded as one class (`files`: submission -> exercise -> source)."""
+    for name, sources in files.items():
+        (tmp_path / "class" / name).mkdir(parents=True)
+        for exercise, source in sources.items():
+            (tmp_path / "class" / name / EXERCISE_FILES[exercise]).write_text(source)
+    records = run([tmp_path / "class"], results=tmp_path / "grades.jsonl", jobs=1, seed=SEED, limits=limits,
+                  out=io.StringIO())
+    return {record["submission"]: record["exercises"] for record in records}
+
+
 def _graded_alone(tmp_path: Path, exercise: str, source: str, limits: Limits) -> dict:
-    (tmp_path / "class" / "sam").mkdir(parents=True)
-    (tmp_path / "class" / "sam" / EXERCISE_FILES[exercise]).write_text(source)
-    [record] = run([tmp_path / "class"], results=tmp_path / "grades.jsonl", jobs=1, seed=SEED, limits=limits,
-                   out=io.StringIO())
-    return record["exercises"][exercise]
+    return _graded(tmp_path, {"sam": {exercise: source}}, limits)["sam"][exercise]
 
 
 def test_a_firmware_that_keeps_the_grader_busy_is_stopped_by_the_grader_s_cpu_time(tmp_path):
@@ -397,23 +404,39 @@ def test_a_firmware_that_keeps_the_grader_busy_is_stopped_by_the_grader_s_cpu_ti
     assert time.monotonic() - started < 60
 
 
+def _cpu_loop_of(seconds: float) -> int:
+    """How many turns of `sum(range(1000))` take about `seconds` of CPU here."""
+    started = time.process_time()
+    for _ in range(200):
+        sum(range(1000))
+    return max(1, round(200 * seconds / (time.process_time() - started)))
+
+
 def test_a_busy_machine_does_not_cost_a_student_points(tmp_path):
-    """The classic Ex2 slip (TMR1IF never cleared: it converts and tries to send on every turn) read ten registers a
-    turn; graded while every core is busy with other work, it gets the marks `appsim check` gives it, because the
-    limit counts CPU time, not the wall clock of a shared machine."""
-    source = solution("ex2").replace("            PIR1bits.TMR1IF = 0\n", "")
-    (tmp_path / "ex2.py").write_text(source)
-    expected = check("ex2", tmp_path / "ex2.py", seed=SEED).to_dict()
-    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 1)]
+    """Graded while every core is busy with other work, two firmwares get the marks `appsim check` gives them, because
+    the limits count CPU time and sleep, never time spent waiting for a CPU: the classic Ex2 slip (TMR1IF never cleared:
+    it converts and tries to send on every turn, reading ten registers a turn), and an Ex1 that computes for a third
+    of the stall time between two register accesses (on a busy machine, that took longer than the stall time)."""
+    busy_ex2 = solution("ex2").replace("            PIR1bits.TMR1IF = 0\n", "")
+    thinking_ex1 = SOLUTION_EX1.replace("    CANInitialization()\n", "    for _ in range(%d):\n        sum(range(1000))"
+                                        "\n    CANInitialization()\n" % _cpu_loop_of(1.0), 1)
+    assert thinking_ex1 != SOLUTION_EX1
+    expected = {}
+    for name, (exercise, source) in {"bo": ("ex2", busy_ex2), "cy": ("ex1", thinking_ex1)}.items():
+        (tmp_path / f"{name}.py").write_text(source)
+        expected[name] = check(exercise, tmp_path / f"{name}.py", seed=SEED).to_dict()
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2 * (os.cpu_count() or 1))]
     try:
-        result = _graded_alone(tmp_path, "ex2", source, Limits(time_s=20, stall_s=5))
+        graded = _graded(tmp_path, {"bo": {"ex2": busy_ex2}, "cy": {"ex1": thinking_ex1}}, Limits(time_s=20, stall_s=3))
     finally:
         for burner in burners:
             burner.kill()
             burner.wait()
-    assert result["fault"] is None, result["checks"][0]["message"]
-    assert (result["score"], [c["passed"] for c in result["checks"]]) == \
-        (expected["score"], [c["passed"] for c in expected["checks"]])
+    for name, exercise in (("bo", "ex2"), ("cy", "ex1")):
+        result = graded[name][exercise]
+        assert result["fault"] is None, f"{name}: {result['checks'][0]['message']}"
+        assert (result["score"], [c["passed"] for c in result["checks"]]) == \
+            (expected[name]["score"], [c["passed"] for c in expected[name]["checks"]])
 
 
 def test_a_firmware_that_sleeps_between_accesses_is_stopped_by_its_time_asleep(tmp_path):

@@ -38,7 +38,6 @@ from pathlib import Path
 
 import pytest
 
-from appsim.errors import GradeError
 from appsim.workshop.course import EXERCISE_FILES
 from appsim.workshop.grading.grade import run
 from appsim.workshop.sandbox.children import Limits

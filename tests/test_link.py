@@ -7,9 +7,9 @@ import time
 import can
 import pytest
 
-from appsim.firmware.an738 import *  # noqa: F403
 from appsim.bus.link import QUEUE_FRAMES, BusLink
 from appsim.bus.realtime import WallClock
+from appsim.firmware.an738 import *
 from appsim.sim import PS_PER_SECOND
 from appsim.workshop.classroom import Classroom
 

@@ -8,18 +8,27 @@ import subprocess
 
 import can
 import pytest
+from conftest import World
+from test_bus_gotchas import normal_node
 
-from appsim.bus.monitor import (LOG_FORMATS, HEADER, LiveTrace, TraceLog, bus_load, error_counters, format_event,
-                                summary, write_log)
+from appsim.bus.monitor import (
+    HEADER,
+    LOG_FORMATS,
+    LiveTrace,
+    TraceLog,
+    bus_load,
+    error_counters,
+    format_event,
+    summary,
+    write_log,
+)
 from appsim.bus.trace import TRACE_WINDOW
 from appsim.bus.wire import Bus
 from appsim.can.bits import INTERMISSION_BITS
 from appsim.errors import OutputError
+from appsim.firmware import *
 from appsim.workshop import checks
 from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES
-from conftest import World
-from test_bus_gotchas import normal_node
-from appsim.firmware import *  # noqa: F403
 
 
 @pytest.fixture
@@ -34,6 +43,7 @@ def traffic(world):
 def test_trace_lines_show_id_kind_dlc_data_sender_and_who_acked(traffic):
     lines = [format_event(e) for e in traffic.bus.trace]
     assert "ID" in HEADER and "ACK by" in HEADER
+    assert [line.split()[0] for line in lines] == [f"{e.end_ps / 1e12:.6f}" for e in traffic.bus.trace], "end of frame"
     rtr, ext, std = lines          # equal TX priority: TXB1 (the extended frame) leaves before TXB0
     assert rtr.split()[1:5] == ["b", "088", "STD", "RTR"] and rtr.endswith("a")
     assert std.split()[1:8] == ["a", "100", "STD", "3", "01", "02", "03"] and std.endswith("b")
@@ -63,8 +73,8 @@ def test_logs_read_back_with_python_can(traffic, tmp_path, suffix):
     messages = list(can.LogReader(path))
     assert [(m.arbitration_id, m.is_extended_id, m.is_remote_frame, bytes(m.data)) for m in messages] == [
         (0x088, False, True, b""), (0x1ABCDE, True, False, b"\x01\x02\x03"), (0x100, False, False, b"\x01\x02\x03")]
-    spacing = (traffic.bus.trace[2].end_ps - traffic.bus.trace[0].end_ps) / 1e12   # .asc counts from its start
-    assert messages[2].timestamp - messages[0].timestamp == pytest.approx(spacing, abs=1e-6)
+    assert [m.timestamp for m in messages] == pytest.approx([e.end_ps / 1e12 for e in traffic.bus.trace], abs=1e-6), \
+        "every format counts from reset and stamps the end of frame"
 
 
 @pytest.mark.skipif(shutil.which("log2asc") is None, reason="can-utils' log2asc not installed (apt-get install can-utils)")

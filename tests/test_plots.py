@@ -8,12 +8,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pytest
 
-from appsim.workshop import plots
+from appsim.board.app023 import APP023
+from appsim.bus.monitor import bus_load
+from appsim.bus.wire import Bus
 from appsim.can.bits import encode, encode_annotated
 from appsim.can.bittiming import BitTiming
-from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus
-from appsim.workshop.classroom import Classroom
+from appsim.can.frame import CanFrame
 from appsim.firmware import (
     CAN_CONFIG_ALL_MSG,
     CAN_TX_PRIORITY_0,
@@ -21,9 +21,9 @@ from appsim.firmware import (
     CANIsRxReady,
     CANSendMessage,
 )
-from appsim.can.frame import CanFrame
-from appsim.bus.monitor import bus_load
 from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.workshop import plots
+from appsim.workshop.classroom import Classroom
 
 EX1_FRAME = CanFrame(0x100, bytes([1, 2, 3, 0x02, 0x9A]))
 CLASSROOM_TIMING = BitTiming(sjw=4, brp=10, seg1ph=8, seg2ph=4, prseg=3)
@@ -57,6 +57,38 @@ def test_wire_bits_draws_the_ack_slot_dominant_when_acked_and_recessive_for_a_lo
     for acked, level in ((True, 0), (False, 1)):
         line = plots.wire_bits(EX1_FRAME, acked=acked).axes[0].lines[0]
         assert line.get_ydata()[ack_slot] == level
+
+
+def test_a_frame_nobody_acks_ends_in_an_error_flag_and_the_error_delimiter_instead_of_eof():
+    figure = plots.wire_bits(EX1_FRAME, acked=False)
+    bits = encode_annotated(EX1_FRAME)
+    ack_slot = next(index for index, bit in enumerate(bits) if bit.field == "ACK slot")
+    levels = list(figure.axes[0].lines[0].get_ydata())
+    assert levels[ack_slot] == 1, "nobody drives the ACK slot dominant"
+    assert levels[ack_slot + 1:ack_slot + 7] == [0] * 6, "six dominant bits of error flag from the next bit"
+    assert levels[ack_slot + 7:ack_slot + 15] == [1] * 8, "then eight recessive bits of error delimiter"
+    assert texts(figure)[-3:] == ["ACK", "error\nflag", "error\ndelimiter"]
+    assert "EOF" not in texts(figure)
+
+
+def test_arbitration_outlines_the_stuff_bits_each_node_sent_and_the_bus_carried():
+    frames = {"station1 (RTR)": CanFrame(0x081, remote=True), "master (data)": CanFrame(0x081, bytes([1, 2, 3, 2, 0]))}
+    figure = plots.arbitration(frames)
+    stuff = [index for index, bit in enumerate(encode_annotated(frames["master (data)"])) if bit.stuff and index < 14]
+    assert stuff == [10], "0x081: SOF and ID bits 0000 10000 0: five dominant bits, then a recessive stuff bit"
+    boxes = patches(figure, "stuff")
+    assert sorted(patch.get_x() for patch in boxes) == [10, 10, 10], "both nodes sent it, and the bus carried it"
+    assert "stuff bits" in figure.axes[0].get_xlabel()
+
+
+def test_arbitration_labels_stay_inside_the_picture():
+    frames = {"station1 (RTR)": CanFrame(0x081, remote=True), "master (data)": CanFrame(0x081, bytes([1, 2, 3, 2, 0]))}
+    figure = plots.arbitration(frames)
+    figure.canvas.draw()
+    inside = figure.axes[0].get_window_extent()
+    [label] = [text for text in figure.axes[0].texts if text.get_text().startswith("lost at bit")]
+    box = label.get_window_extent()
+    assert inside.x0 <= box.x0 and box.x1 <= inside.x1 and inside.y0 <= box.y0 and box.y1 <= inside.y1
 
 
 def test_arbitration_the_lower_id_wins_and_the_loser_stops_at_the_first_differing_bit():
@@ -146,3 +178,8 @@ def test_error_counter_history_draws_tec_rec_and_the_error_passive_threshold():
     assert list(rec.get_ydata()) == [0, 0, 1, 1]
     assert "error-passive (128)" in texts(figure)
     assert figure.axes[0].get_title() == "error counters of alone"
+    figure.canvas.draw()
+    inside = figure.axes[0].get_window_extent()
+    for label in figure.axes[0].texts:
+        box = label.get_window_extent()
+        assert inside.y0 <= box.y0 and box.y1 <= inside.y1, f"{label.get_text()!r} is cut by the frame"

@@ -13,14 +13,27 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus
-from appsim.firmware import *  # noqa: F403
-from appsim.can.frame import CanFrame
-from appsim.bus.realtime import WallClock
-from appsim.sim import PS_PER_SECOND, Simulator
-from appsim.can.slcan import (BIT_RATES, Close, Nothing, Open, Query, SetBitRate, SlcanError, Timestamps,
-                          Transmit, encode_frame, parse_command, status_reply, transmit_reply)
 from appsim.board.usbcdc import UsbCdc
+from appsim.bus.realtime import WallClock
+from appsim.bus.wire import Bus
+from appsim.can.frame import CanFrame
+from appsim.can.slcan import (
+    BIT_RATES,
+    Close,
+    Nothing,
+    Open,
+    Query,
+    SetBitRate,
+    SlcanError,
+    Timestamps,
+    Transmit,
+    encode_frame,
+    parse_command,
+    status_reply,
+    transmit_reply,
+)
+from appsim.firmware import *
+from appsim.sim import PS_PER_SECOND, Simulator
 
 FRAMES = [
     CanFrame(0x088, bytes([1, 2, 3, 2, 0x9A])),

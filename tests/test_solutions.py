@@ -10,8 +10,8 @@ import pytest
 from outside import Outside, every_frame
 from workshop import KIT, MS, classroom, payload, sent
 
-from appsim.can.frame import CanFrame
 from appsim.bus.controller import Mode
+from appsim.can.frame import CanFrame
 from appsim.sim import ps
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.faults import board_fault

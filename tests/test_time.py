@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from appsim.board.app023 import APP023
-from appsim.firmware import *  # noqa: F403
+from appsim.firmware import *
 from appsim.sim import PS_PER_SECOND
 
 SEVEN_NODES = """

@@ -5,6 +5,7 @@ import logging
 import os
 import re
 import socket
+import threading
 
 import pytest
 import serial
@@ -12,7 +13,7 @@ import serial
 from appsim.board.app023 import APP023
 from appsim.board.usbcdc import LEFT, NOBODY, UsbCdc
 from appsim.bus.wire import Bus
-from appsim.firmware import *  # noqa: F403
+from appsim.firmware import *
 from appsim.sim import PS_PER_SECOND, Simulator, ps
 
 LINK_19200 = (USART_TX_INT_OFF & USART_RX_INT_OFF & USART_ASYNCH_MODE & USART_EIGHT_BIT
@@ -255,3 +256,30 @@ def test_close_unplugs_the_bridge():
 def test_a_transport_that_does_not_exist_is_refused_with_the_choices():
     with pytest.raises(ValueError, match="'pty'.*'socket'"):
         UsbCdc(APP023(Bus(Simulator())), transport="usb")
+
+
+@pytest.mark.parametrize("transport", ["pty", "socket"])
+def test_after_the_run_the_port_lingers_until_its_program_closes_it_so_the_program_sees_no_error(transport):
+    """What `appsim monitor` does when its run ends: closing our end under a program hangs the port up, and pyserial
+    raises there (miniterm dies with a traceback); lingering, the program reads the notice and leaves in its time."""
+    sim, board, usb, sent = bridged(chatter, transport)
+    with usb:
+        assert usb.linger("# over\r\n") == 0, "no program: nothing to wait for"
+        port = serial.serial_for_url(usb.url, timeout=5)
+        run(sim, 0.05, usb.poll)
+        assert usb.in_use()
+        read: list[bytes] = []
+
+        def program():
+            read.append(port.read_until(b"# over\r\n"))
+            port.write(b"bye")                                         # after the run: reaches nothing
+            port.flush()
+            port.close()
+
+        thread = threading.Thread(target=program)
+        thread.start()
+        assert usb.linger("# over\r\n") == 3
+        thread.join(timeout=5)
+    board_bytes = read[0].removesuffix(b"# over\r\n")
+    assert board_bytes != read[0] and board_bytes.endswith(b"\n"), "the notice on a line of its own, at the end"
+    assert numbers(board_bytes.removesuffix(b"\r\n")), "after the board's lines (the last one cut by the end)"

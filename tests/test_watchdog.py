@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from appsim.firmware import *  # noqa: F403
+from appsim.firmware import *
 from appsim.sim import FROZEN
 from appsim.watchdog import FirmwareHung
 
@@ -59,7 +59,7 @@ def test_except_exception_around_the_loop_does_not_catch_the_watchdog(world):
             try:
                 while True:
                     pass
-            except Exception:       # noqa: BLE001 (what a student writes to "keep it running")
+            except Exception:
                 pass
 
     assert not issubclass(FirmwareHung, Exception)
@@ -72,7 +72,7 @@ def test_a_firmware_that_catches_everything_is_frozen_where_it_is(world):
             try:
                 while True:
                     pass
-            except BaseException:   # noqa: BLE001
+            except BaseException:
                 pass
 
     process = run_beside_a_sender(world, catches_all)
@@ -85,7 +85,7 @@ def test_a_firmware_that_catches_the_watchdog_and_goes_on_with_the_board_never_r
         try:
             while True:
                 pass
-        except BaseException:       # noqa: BLE001
+        except BaseException:
             pass
         while True:
             CANSendMessage(0x200, [2], 1, CAN_TX_STD_FRAME)
@@ -162,7 +162,7 @@ def test_ctrl_c_stops_the_run_wherever_it_lands_and_firmware_cannot_catch_it(wor
             os.kill(os.getpid(), signal.SIGINT)
             while True:
                 CANIsRxReady()
-        except BaseException:       # noqa: BLE001
+        except BaseException:
             while True:
                 CANIsRxReady()
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from appsim.bus.wire import Bus, BusEvent
-from appsim.workshop.classroom import Classroom
 from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.workshop.classroom import Classroom
 
 KIT = Path(__file__).resolve().parent.parent
 MS = PS_PER_SECOND // 1000

@@ -4,10 +4,11 @@ Not register level: the C driver bit-bangs ports; here each driver operation cos
 """
 from __future__ import annotations
 
+import io
 from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 from appsim.board import font5x7
 from appsim.chip.mcu import PIC18F8680
@@ -124,21 +125,33 @@ class GLCD:
                     screen[y:y + font5x7.HEIGHT, x + dx] = (bits >> rows) & 1
         return screen
 
+    def colours(self) -> np.ndarray:
+        """The 64 x 128 pixels as RGB bytes: dark ink on the yellow-green backlight, grey-green when it is off."""
+        import numpy as np
+
+        on = self.initialised and self.backlight
+        background, ink = ("#b5d334", "#1d2a10") if on else ("#8e9a86", "#3c4436")
+        return np.where(self.pixels()[..., None], _rgb(ink), _rgb(background)).astype(np.uint8)
+
+    def png(self, *, scale: int = 3) -> bytes:
+        """The screen alone as a PNG, each pixel `scale` x `scale` (quick to make: for a picture that changes often)."""
+        from PIL import Image
+
+        buffer = io.BytesIO()
+        image = Image.fromarray(self.colours(), "RGB")
+        image.resize((WIDTH_PX * scale, HEIGHT_PX * scale), Image.Resampling.NEAREST).save(buffer, format="png")
+        return buffer.getvalue()
+
     def picture(self, ax: Axes | None = None, *, scale: float = 4.0) -> Figure:
         """Draw the module as it looks: dark pixels on the yellow-green backlight (grey-green when off)."""
         import matplotlib.pyplot as plt
-        import numpy as np
         from matplotlib.patches import FancyBboxPatch
 
         if ax is None:
             figure = plt.figure(figsize=(WIDTH_PX * scale / 100 + 0.4, HEIGHT_PX * scale / 100 + 0.4), dpi=100)
             ax = figure.add_axes((0, 0, 1, 1))
         figure = ax.figure
-        on = self.initialised and self.backlight
-        background, ink = ("#b5d334", "#1d2a10") if on else ("#8e9a86", "#3c4436")
-        image = np.empty((HEIGHT_PX, WIDTH_PX, 3))
-        image[:] = _rgb(background)
-        image[self.pixels()] = _rgb(ink)
+        image = self.colours()
         margin = 6
         ax.add_patch(FancyBboxPatch((-margin, -margin), WIDTH_PX + 2 * margin, HEIGHT_PX + 2 * margin,
                                     boxstyle="round,pad=2", facecolor="#202020", edgecolor="#505050", linewidth=2))
@@ -159,8 +172,8 @@ class GLCD:
         return Path(path)
 
 
-def _rgb(colour: str) -> tuple[float, float, float]:
-    return tuple(int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5))    # type: ignore[return-value]
+def _rgb(colour: str) -> tuple[int, int, int]:
+    return tuple(int(colour[i:i + 2], 16) for i in (1, 3, 5))    # type: ignore[return-value]
 
 
 def attach_glcd(mcu: PIC18F8680) -> GLCD:

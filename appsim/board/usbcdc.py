@@ -9,6 +9,7 @@ import os
 import select
 import socket
 import sys
+import time
 from collections import Counter
 from typing import Literal
 
@@ -26,6 +27,7 @@ SOCKET_RECEIVE_BYTES = 4096    # what the kernel holds for the bridge of the soc
 CR, LF = 0x0D, 0x0A
 LINE_ENDS = b"\r\n\a"          # CR LF end a monitor line; CR or BELL end an SLCAN answer
 ANSWER_PS = PS_PER_SECOND // 20  # 50 ms: the board answers within this, and pauses no longer inside a line
+LINGER_POLL_S = 0.05           # after the run: how often `linger` looks whether the program has closed the port
 
 # Why bytes from the board reached no program.
 NOBODY = "no program had the port open"
@@ -181,6 +183,29 @@ class UsbCdc:
         self._handover_ps = max(self._handover_ps, self.sim.now + ANSWER_PS)
 
     # ------------------------------------------------------------------ life cycle
+    def in_use(self) -> bool:
+        """Whether a program has the port open (on the socket: is connected and served)."""
+        return not self.closed and self._port.in_use()
+
+    def linger(self, notice: str = "") -> int:
+        """The run is over: send `notice` to the program that has the port open, and keep the port until it closes it,
+        as a bridge left plugged in would. Closing our end under it instead hangs the port up, and pyserial raises
+        there (miniterm dies with a traceback). What the program writes meanwhile reaches nothing: the count of those
+        bytes. Returns at once when no program has the port; Ctrl-C ends the wait."""
+        if not self.in_use():
+            return 0
+        if notice and self._last != LF:
+            notice = "\r\n" + notice          # after the line the board was sending
+        for byte in notice.encode():
+            if self._port.write(byte) is not None:
+                break
+        ignored = 0
+        while (data := self._port.read(SOCKET_RECEIVE_BYTES)) is not None:
+            ignored += len(data)
+            if not data:
+                time.sleep(LINGER_POLL_S)
+        return ignored
+
     def report(self) -> str:
         """What crossed the bridge each way, and what was lost on the way, with why."""
         to_board = {NOT_TAKEN: self.end.lost, UNPLUGGED: self._unsent}
@@ -239,6 +264,10 @@ class _Pty:
         events = self._events()
         return not events & select.POLLHUP or bool(events & select.POLLIN)
 
+    def in_use(self) -> bool:
+        """Whether a program has the port open."""
+        return not self._events() & select.POLLHUP
+
     def read(self, size: int) -> bytes | None:
         """Up to `size` bytes the program wrote; None when none has the port open and nothing is left."""
         try:
@@ -294,6 +323,10 @@ class _Socket:
         self._connection.setblocking(False)
         self._connection.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         return True
+
+    def in_use(self) -> bool:
+        """Whether a program is connected and served (those waiting their turn were never served)."""
+        return self._connection is not None
 
     def read(self, size: int) -> bytes | None:
         """Up to `size` bytes the program wrote; None when it has gone and nothing is left."""

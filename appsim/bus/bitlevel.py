@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 from appsim.can.bits import crc15, encode_annotated
 from appsim.can.frame import CanFrame
 
+ERROR_FLAG_BITS = 6                 # an error or overload flag; a passive one ends after 6 equal bits
+ERROR_DELIMITER_BITS = 8
 ERROR_KINDS = ("bit", "stuff", "crc", "form", "ack", "dominant")
 _LABEL = {"bit": "bit error", "stuff": "stuff error", "crc": "CRC error", "form": "form error", "ack": "ACK error"}
 # The arbitration field: identifier and RTR; an extended frame's SRR and IDE too (a standard frame's IDE is control).
@@ -344,14 +346,14 @@ class _Node:
                 self._eight_more()
                 self.flag_bits = 0
                 return 0
-            if self.flag_bits < 6:
+            if self.flag_bits < ERROR_FLAG_BITS:
                 return 0
-            self.dominant_run = 6
+            self.dominant_run = ERROR_FLAG_BITS
         else:
             self.dominant_in_flag |= wire == 0
             self.equal_run = self.equal_run + 1 if wire == self.equal_level else 1
             self.equal_level = wire
-            if self.equal_run < 6:
+            if self.equal_run < ERROR_FLAG_BITS:
                 return 1
             if self.deferred_tec and self.dominant_in_flag:
                 self._count(tec=self.deferred_tec)
@@ -375,11 +377,11 @@ class _Node:
 
     def _delimiter_bit(self, wire: int) -> int:
         if wire == 0:
-            if self.count == 7:               # the last delimiter bit dominant: an overload frame
+            if self.count == ERROR_DELIMITER_BITS - 1:     # the last delimiter bit dominant: an overload frame
                 return self._start_overload()
             return self._error("form", "a dominant bit in the error delimiter")
         self.count += 1
-        if self.count == 8:
+        if self.count == ERROR_DELIMITER_BITS:
             self.end_ps = self.bit_end()
             self.phase, self.count = _INTERMISSION, 0
         return 1

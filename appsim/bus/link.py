@@ -59,7 +59,7 @@ def _integer(value: Any) -> int | None:
     """`value` as an int if it is an integer (numpy's included), else None."""
     try:
         return operator.index(value)
-    except Exception:       # noqa: BLE001 - whatever a hostile object raises, it is not an integer
+    except Exception:
         return None
 
 
@@ -201,7 +201,7 @@ class BusLink:
     def frame_from_simulation(self, frame: CanFrame) -> None:
         try:
             self.outside.send(to_message(frame), timeout=0)     # a bus that cannot take it now must not stall us
-        except Exception as error:      # noqa: BLE001 - whatever the outside bus raises is counted, never fatal
+        except Exception as error:
             self._failed(self.send_failures, "could not send", error)
             return
         self.sent += 1
@@ -216,7 +216,7 @@ class BusLink:
         for _ in range(READ_PER_POLL):
             try:
                 message = self.outside.recv(timeout=0)
-            except Exception as error:  # noqa: BLE001 - whatever the outside bus raises is counted, never fatal
+            except Exception as error:
                 self._failed(self.receive_errors, "could not receive", error)
                 break
             if message is None:
@@ -266,7 +266,7 @@ class BusLink:
     def _reopen(self) -> None:
         try:
             outside = can.Bus(**(self._config or {}))
-        except Exception:   # noqa: BLE001 - still gone (python-can says why): try again later
+        except Exception:
             self._reopen_at = time.monotonic() + REOPEN_EVERY_S
             return
         self._close_outside()
@@ -317,7 +317,7 @@ class BusLink:
             self._kernel_socket, self._kernel_base = None, 0
         try:
             self.outside.shutdown()
-        except Exception as error:      # noqa: BLE001 - closing a bus that failed must not end the run
+        except Exception as error:
             log.warning("%s: closing %s: %s", self.name, self.outside.channel_info, error)
 
     def close(self) -> None:

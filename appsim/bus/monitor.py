@@ -4,9 +4,11 @@ each node's error counters, and logs in python-can's file formats (candump .log,
 from __future__ import annotations
 
 import errno
+import html
 import io
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
+from contextlib import suppress
 from pathlib import Path
 
 import can
@@ -21,17 +23,84 @@ HEADER = f"{'time (s)':>11}  {'sender':<9} {'ID':>8}  {'type':<8} DLC  {'data':<
 # (not .trc: python-can's TRC writer leaves remote frames out).
 LOG_FORMATS: dict[str, type[can.io.generic.FileIOMessageWriter]] = {
     ".log": can.CanutilsLogWriter, ".asc": can.ASCWriter, ".blf": can.BLFWriter, ".csv": can.CSVWriter}
+LOG_KINDS = {".log": "candump -L format", ".asc": "Vector ASC", ".blf": "Vector BLF", ".csv": "python-can CSV"}
+
+
+def stamp(event: BusEvent) -> float:
+    """When the trace and every log say an event happened: its end (the end of EOF, or of an error frame's delimiter),
+    in seconds since the boards' reset. A receiver has a frame then, and stamps it then: candump shows the kernel's
+    time of reception, CANKing the interface's (docs/traces.md)."""
+    return event.end_ps / PS_PER_SECOND
 
 
 def format_event(event: BusEvent) -> str:
-    """One line per frame: time of SOF, sender, ID, STD/EXT and RTR, DLC, data, who ACKed (or the error)."""
+    """One line per frame: its time (`stamp`), sender, ID, STD/EXT and RTR, DLC, data, who ACKed (or the error)."""
     frame = event.frame
     ident = f"{frame.can_id:08X}" if frame.extended else f"{frame.can_id:03X}"
     kind = ("EXT" if frame.extended else "STD") + (" RTR" if frame.remote else "")
     data = "" if frame.remote else frame.data.hex(" ").upper()
     tail = f"** {event.error}" if event.error else (",".join(event.acked_by) or "-")
-    return (f"{event.start_ps / PS_PER_SECOND:11.6f}  {event.sender:<9} {ident:>8}  {kind:<8} "
+    return (f"{stamp(event):11.6f}  {event.sender:<9} {ident:>8}  {kind:<8} "
             f"{frame.dlc:>3}  {data:<23}  {tail}")
+
+
+def acks(event: BusEvent, nodes: Sequence[str]) -> str:
+    """Who ACKed a frame, in a few words: "all" (every other node of `nodes`), "none", "all but station3", or the few
+    that did ("monitor")."""
+    if not event.acked_by:
+        return "none"
+    missing = [node for node in nodes if node != event.sender and node not in event.acked_by]
+    if not missing:
+        return "all"
+    if len(missing) < len(event.acked_by):
+        return "all but " + ", ".join(missing)
+    return ", ".join(event.acked_by)
+
+
+class TraceTable:
+    """Bus events as the monitor lists them, one line a frame: in a terminal `format_event`'s lines, in Jupyter a table
+    whose ACK column says who ACKed in a few words (`acks` among `nodes`) and whose error frames stand out in red.
+    `column`, if given, is one more column: its title and what it shows for each event."""
+
+    def __init__(self, events: Iterable[BusEvent], nodes: Sequence[str], *,
+                 column: tuple[str, Callable[[BusEvent], str]] | None = None):
+        self.events = list(events)
+        self.nodes = list(nodes)
+        self.column = column
+
+    def __len__(self) -> int:
+        return len(self.events)
+
+    def __str__(self) -> str:
+        lines = [HEADER]
+        for event in self.events:
+            lines.append(format_event(event))
+            if self.column is not None:
+                lines.append(f"{'':>13}{self.column[0]}: {self.column[1](event)}")
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        titles = ["time (s)", "sender", "ID", "type", "DLC", "data", "ACK"] + ([self.column[0]] if self.column else [])
+        head = "".join(f"<th style='text-align:left;padding:1px 8px'>{html.escape(title)}</th>" for title in titles)
+        rows = "".join(self._row(event) for event in self.events) or \
+            f"<tr><td colspan='{len(titles)}' style='padding:1px 8px'>no frames</td></tr>"
+        return (f"<table class='appsim-trace' style='border-collapse:collapse;font-size:12px;white-space:nowrap'>"
+                f"<thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
+
+    def _row(self, event: BusEvent) -> str:
+        frame = event.frame
+        ident = f"{frame.can_id:08X}" if frame.extended else f"{frame.can_id:03X}"
+        kind = ("EXT" if frame.extended else "STD") + (" RTR" if frame.remote else "")
+        data = "" if frame.remote else frame.data.hex(" ").upper()
+        ack = (f"<b style='color:#cf222e'>error: {html.escape(event.error)}</b>" if event.error
+               else html.escape(acks(event, self.nodes)))
+        cells = [f"{event.start_ps / PS_PER_SECOND:.6f}", html.escape(event.sender), f"<code>{ident}</code>", kind,
+                 str(frame.dlc), f"<code>{data}</code>" if data else "", ack]
+        if self.column is not None:
+            cells.append(html.escape(self.column[1](event)))
+        style = " style='background:#ffebe9'" if event.error else ""
+        row = "".join(f"<td style='padding:1px 8px;text-align:left'>{cell}</td>" for cell in cells)
+        return f"<tr{style}>{row}</tr>"
 
 
 def bus_load(trace: Sequence[BusEvent], start_ps: int, end_ps: int) -> float:
@@ -83,16 +152,16 @@ class LiveTrace:
 
 
 def to_message(event: BusEvent, channel: str | int) -> can.Message:
-    """The frame as python-can logs it, timestamped at its end of frame (when receivers have it)."""
+    """The frame as python-can logs it, at its `stamp`."""
     frame = event.frame
     if event.error:
-        return can.Message(timestamp=event.end_ps / PS_PER_SECOND, is_error_frame=True, channel=channel)
-    return can.Message(timestamp=event.end_ps / PS_PER_SECOND, arbitration_id=frame.can_id,
+        return can.Message(timestamp=stamp(event), is_error_frame=True, channel=channel)
+    return can.Message(timestamp=stamp(event), arbitration_id=frame.can_id,
                        is_extended_id=frame.extended, is_remote_frame=frame.remote, dlc=frame.dlc,
                        data=frame.data, channel=channel)
 
 
-class _WholeRecords(io.RawIOBase):
+class WholeRecords(io.RawIOBase):
     """The file under a python-can writer. What the writer writes waits here until `commit()` gives it to the operating
     system in one go, so the file grows by whole records only; a write that fails (a full disk) cuts the file back to
     its last whole record."""
@@ -159,40 +228,33 @@ def cannot_write(path: Path, error: OSError) -> OutputError:
     return OutputError(f"cannot write {path}: {reason}")
 
 
-class TraceLog:
-    """A CAN log in the format its file's suffix names (`LOG_FORMATS`), written by python-can's writer as the bus
-    carries each event, each record handed to the operating system whole as it happens: a run cut short (Ctrl-C, a
-    crash, a kill) leaves a log that `can.LogReader` reads to its last frame, and a full disk ends the log at its last
-    whole record with an `OutputError` that says so. Opening it is the check that the path can be written."""
+class EventFile:
+    """A file the bus's events go to as it carries them, each record handed to the operating system whole as it
+    happens: a run cut short (Ctrl-C, a crash, a kill) leaves a file readable to its last event, and a full disk ends it
+    at its last whole record with an `OutputError` that says so. Opening it is the check that the path can be written.
+    A format says what `kind` of file it is, how it `_record`s an event and how it `_finish`es."""
 
-    def __init__(self, path: str | Path, *, channel: str = "vcan0"):
+    kind = ""
+
+    def __init__(self, path: str | Path):
         self.path = Path(path)
-        self.written = 0                 # events in the log
-        suffix = self.path.suffix.lower()
-        if suffix not in LOG_FORMATS:
-            raise OutputError(f"cannot write a CAN log named {self.path.name}: use .log (candump), .asc (Vector), "
-                              ".blf (Vector binary) or .csv")
+        self.written = 0                 # events in the file
+        self._closed = False
         try:
-            self._file = _WholeRecords(self.path)
+            self._file = WholeRecords(self.path)
         except OSError as error:
             raise cannot_write(self.path, error) from None
-        self._channel: str | int = channel if suffix == ".log" else 1
-        self._writer: can.io.generic.FileIOMessageWriter
-        if suffix == ".blf":            # one container per frame: stored, as there is nothing to compress in one
-            self._writer = can.BLFWriter(self._file, compression_level=0)
-        else:
-            text = io.TextIOWrapper(self._file, encoding="utf-8", write_through=True)
-            writer = LOG_FORMATS[suffix]
-            self._writer = writer(text, channel=channel) if suffix == ".log" else writer(text)
-        self._closed = False
-        self._commit()                  # the format's header: a full disk shows now, before the run
+
+    def _record(self, event: BusEvent) -> None:
+        raise NotImplementedError
+
+    def _finish(self) -> None:
+        raise NotImplementedError
 
     def write(self, event: BusEvent) -> None:
-        """One more event in the log, given to the operating system before this returns; Ctrl-C waits for it."""
+        """One more event in the file, given to the operating system before this returns; Ctrl-C waits for it."""
         with ctrl_c_waits():
-            self._writer.on_message_received(to_message(event, self._channel))
-            if isinstance(self._writer, can.BLFWriter):
-                self._writer._flush()       # the writer's own buffer would hold 128 kB of frames back
+            self._record(event)
             self._commit()
             self.written += 1
 
@@ -205,20 +267,56 @@ class TraceLog:
             raise OutputError(f"{cannot_write(self.path, error)}{holds}") from None
 
     def close(self) -> None:
-        """End the log as its format ends (ASC's last line, BLF's header): after a failed write, as far as it goes."""
+        """End the file as its format ends: after a failed write, as far as it goes."""
         if self._closed:
             return
         self._closed = True
-        try:
-            self._writer.stop()
-        except OSError:
-            pass                        # the file was cut back to its last whole record
+        with suppress(OSError):         # after a failed write: the file was cut back to its last whole record
+            self._finish()
+        with suppress(OSError):
+            self._file.close()
 
-    def __enter__(self) -> TraceLog:
+    def __enter__(self) -> EventFile:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class TraceLog(EventFile):
+    """A CAN log in the format its file's suffix names (`LOG_FORMATS`), written by python-can's writer as the bus
+    carries each event: `can.LogReader` reads it back to its last frame, at the times the trace shows (`stamp`)."""
+
+    def __init__(self, path: str | Path, *, channel: str = "vcan0"):
+        suffix = Path(path).suffix.lower()
+        if suffix not in LOG_FORMATS:
+            raise OutputError(f"cannot write a CAN log named {Path(path).name}: use .log (candump), .asc (Vector), "
+                              ".blf (Vector binary) or .csv")
+        super().__init__(path)
+        self.kind = LOG_KINDS[suffix]
+        self._channel: str | int = channel if suffix == ".log" else 0    # python-can's first; Vector's channel 1
+        self._writer: can.io.generic.FileIOMessageWriter
+        # python-can counts an .asc's and a .blf's times from their first frame: these count from reset (time 0), as
+        # the trace, the .log and the .csv do, so every one gives a frame the same time.
+        if suffix == ".blf":            # one container per frame: stored, as there is nothing to compress in one
+            self._writer = can.BLFWriter(self._file, compression_level=0)
+            self._writer.start_timestamp = 0.0
+        else:
+            text = io.TextIOWrapper(self._file, encoding="utf-8", write_through=True)
+            writer = LOG_FORMATS[suffix]
+            self._writer = writer(text, channel=channel) if suffix == ".log" else writer(text)
+            if isinstance(self._writer, can.ASCWriter):     # the measurement starts at reset, every node error active
+                self._writer.log_event("CAN 1 Status:chip status error active", 0.0)
+        self._commit()                  # the format's header: a full disk shows now, before the run
+
+    def _record(self, event: BusEvent) -> None:
+        self._writer.on_message_received(to_message(event, self._channel))
+        if isinstance(self._writer, can.BLFWriter):
+            self._writer._flush()       # the writer's own buffer would hold 128 kB of frames back
+
+    def _finish(self) -> None:
+        """ASC's last line, BLF's header."""
+        self._writer.stop()
 
 
 def write_log(events: Iterable[BusEvent], path: str | Path, *, channel: str = "vcan0") -> Path:

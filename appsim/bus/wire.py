@@ -37,17 +37,19 @@ class BusEvent:
     acked_by: tuple[str, ...] = ()
     error: str = ""                  # "" for a good frame, else what went wrong, in CAN terms
     received: tuple[tuple[str, str], ...] = ()   # (node, what its acceptance logic did)
-    flag_bit: int | None = field(default=None, repr=False)    # bus bit (SOF = 0) where the first error flag starts
-    wire: tuple[tuple[int, int], ...] = field(default=(), repr=False)   # (time, level) changes, bit-level frames
+    # Not part of the event's repr: the bus bit (SOF = 0) where the first error flag starts (None: no flag), and for
+    # a frame run bit by bit, the wire as a logic analyser records it, (time, level) at each change from SOF.
+    flag_at_bit: int | None = field(default=None, repr=False, compare=False)
+    wire: tuple[tuple[int, int], ...] = field(default=(), repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
         return not self.error
 
     def __str__(self) -> str:
-        time = f"{self.start_ps / PS_PER_SECOND:12.6f}"
+        time = f"{self.end_ps / PS_PER_SECOND:12.6f}"       # when receivers have it, as the trace and logs say
         if self.error:
-            return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}, error flag at bit {self.flag_bit}"
+            return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}, error flag at bit {self.flag_at_bit}"
         acks = ",".join(self.acked_by) or "-"
         return f"{time}  {self.sender:>10}  {self.frame}  ACK by {acks}"
 
@@ -462,7 +464,7 @@ class Bus:
         end = run.end_ps
         self.busy_until = max(run.idle_ps, end + INTERMISSION_BITS * self.bit_ps)
         error = self._describe(run, entries, ports)
-        flag_bit = None if run.first_error_ps is None else (run.first_error_ps - start) // self.bit_ps
+        flag_at_bit = None if run.first_error_ps is None else (run.first_error_ps - start) // self.bit_ps
 
         def end_of_frame() -> None:
             received = []
@@ -481,7 +483,7 @@ class Bus:
             if isinstance(sender, _LinkPort) and not error:
                 acked += (sender.name,)
             self.trace.append(BusEvent(start, end, sender.name, frame, acked, error,
-                                       tuple(received), flag_bit, tuple(run.wire)))
+                                       tuple(received), flag_at_bit, tuple(run.wire)))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_frame)

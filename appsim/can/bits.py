@@ -26,6 +26,7 @@ __all__ = [
     "frame_bits",
     "frame_time",
     "frame_time_ps",
+    "max_frame_bits",
 ]
 
 INTERMISSION_BITS = 3
@@ -147,6 +148,21 @@ def frame_bits(frame: CanFrame) -> int:
     `frame_time_ps` does that for a bit rate in bit/s. Add `INTERMISSION_BITS` before the next frame may start.
     """
     return len(_stuffed_region(frame)) + len(_TAIL)
+
+
+def max_frame_bits(data_bytes: int, *, extended: bool = False) -> int:
+    """The longest a data frame of `data_bytes` bytes can be on the wire, SOF..EOF, with the most stuff bits.
+
+    Stuffing covers SOF through the CRC sequence: 34 + 8n bits in a standard frame, 54 + 8n in an extended one.
+    The first stuff bit may follow the fifth of them and then one every four (a stuff bit starts the next run),
+    so at most (stuffed - 1) // 4 stuff bits: the bound the CAN-projects chapter extract derives (section 1.6)
+    and that bus-load analysis uses. A remote frame is as long as a data frame with no data. Add
+    `INTERMISSION_BITS` for the bus time before the next frame may start.
+    """
+    if not 0 <= data_bytes <= 8:
+        raise ValueError(f"a CAN frame carries 0 to 8 data bytes, got {data_bytes!r}")
+    stuffed = (54 if extended else 34) + 8 * data_bytes
+    return stuffed + (stuffed - 1) // 4 + len(_TAIL)
 
 
 def frame_time(frame: CanFrame, bit_rate: float) -> float:

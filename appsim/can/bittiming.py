@@ -8,6 +8,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
+
 from appsim.errors import BitTimingError
 
 SYNC_SEG_TQ = 1
@@ -17,6 +18,10 @@ MAX_TQ_PER_BIT = 25
 SJW_MAX_TQ = 4
 SEGMENT_MAX_TQ = 8
 BRP_MAX = 64
+CLASSIC_CAN_MAX_BIT_RATE = 1_000_000
+"""Classic CAN's fastest bit rate, bit/s (ISO 11898-1; only CAN FD's data phase goes faster, and the ECAN has none)."""
+FOSC_MAX_HZ = 40_000_000
+"""The PIC18F8680's fastest clock (its data sheet: DC to 40 MHz)."""
 BRGCON3_IMPLEMENTED = 0x47
 """BRGCON3 bits this model implements (WAKFIL, SEG2PH<2:0>); bits 7 and 5..3 are unimplemented and read 0."""
 
@@ -193,6 +198,13 @@ class BitTiming:
         """Nominal bit time in picoseconds, rounded once at the end (to nearest, ties to even)."""
         return round(self.tq_seconds(fosc) * self.tq_per_bit * 10**12)
 
+    @property
+    def iso_sjw(self) -> bool:
+        """Whether SJW <= min(Phase Segment 1, Phase Segment 2), ISO 11898-1's rule (the data sheet asks only
+        SJW <= Phase Segment 2): a resynchronisation may then neither eat Phase Segment 2 nor lengthen Phase Segment
+        1 past its own length."""
+        return self.sjw <= min(self.seg1ph, self.effective_seg2ph)
+
     def problems(self) -> list[str]:
         """Every datasheet timing rule this setting breaks, as sentences naming the rule and the numbers.
 
@@ -234,13 +246,13 @@ class Solution:
 
 
 def _valid_splits(brp: int, n: int, sjw: int | None) -> list[BitTiming]:
-    """Every valid setting (SEG2PHTS = 1) with this BRP divider and N TQ; SJW = `sjw`, or min(4, PS2) if None."""
+    """Every valid setting (SEG2PHTS = 1) with this BRP divider and N TQ; SJW = `sjw`, or min(4, PS1, PS2) if None."""
     splits = []
     for seg2ph in range(IPT_TQ, SEGMENT_MAX_TQ + 1):
         for prseg in range(1, SEGMENT_MAX_TQ + 1):
             seg1ph = n - SYNC_SEG_TQ - prseg - seg2ph
             if 1 <= seg1ph <= SEGMENT_MAX_TQ:
-                jump = min(SJW_MAX_TQ, seg2ph) if sjw is None else sjw
+                jump = min(SJW_MAX_TQ, seg1ph, seg2ph) if sjw is None else sjw
                 timing = BitTiming(brp=brp, prseg=prseg, seg1ph=seg1ph, seg2ph=seg2ph, sjw=jump)
                 if timing.is_valid:
                     splits.append(timing)
@@ -259,8 +271,10 @@ def calculate(
 
     Listed: each BRP divider 1..64 and N = 8..25 TQ whose rate is within `tolerance` (relative, 0.01 = 1 %;
     default exact), and each split of N into Prop, PS1 and PS2 (SEG2PHTS = 1) that passes every rule.
-    SJW is not varied: by default it is min(4, PS2), the largest legal jump width and so the most tolerant
-    of oscillator drift; pass `sjw` (1..4) to fix it instead (settings whose PS2 is shorter are then left out).
+    SJW is not varied: by default it is min(4, PS1, PS2), the largest jump width ISO 11898-1 allows (SJW <=
+    min(PS1, PS2); the data sheet asks only SJW <= PS2) and so the most tolerant of oscillator drift; pass `sjw`
+    (1..4) to fix it instead (settings whose PS2 is shorter are then left out, those whose PS1 is shorter are
+    kept and `format_table` flags them).
 
     Order (deterministic): smallest |rate error|; then sample point closest to `sample_point` (default
     87.5 %, CiA's recommendation); then more TQ per bit; then larger min(PS1, PS2) (oscillator tolerance
@@ -303,18 +317,21 @@ def calculate(
 
 
 def format_table(solutions: Iterable[Solution]) -> str:
-    """A calculator-style table, one row per solution: BRP, N, segments, SJW, sample point, error, registers."""
+    """A calculator-style table, one row per solution: BRP, N, segments, SJW, sample point, error, registers; a row
+    whose SJW breaks ISO 11898-1's SJW <= min(PS1, PS2) says so."""
     lines = [
-        "BRP = prescaler divider (AN738 CANInitialize argument); reg = BRP<5:0> = BRP - 1",
+        "BRP = prescaler divider (AN738 CANInitialize argument); reg = BRP<5:0> = BRP - 1; "
+        "SJW <= min(PS1, PS2) (ISO 11898-1)",
         f"{'BRP':>3} {'reg':>3} {'N':>2} {'Prop':>4} {'PS1':>3} {'PS2':>3} {'SJW':>3} {'SP %':>6} "
         f"{'Error %':>7}  BRGCON1 BRGCON2 BRGCON3",
     ]
     for s in solutions:
         t = s.timing
         regs = "    ".join(f"0x{r:02X}" for r in t.to_registers())
+        flag = "" if t.iso_sjw else "   SJW > PS1: breaks ISO 11898-1 (the PIC accepts it)"
         lines.append(
             f"{t.brp:>3} {t.brp_register:>3} {t.tq_per_bit:>2} {t.prseg:>4} {t.seg1ph:>3} {t.effective_seg2ph:>3} "
-            f"{t.sjw:>3} {_percent(t.sample_point):>6} {_percent(s.error):>7}     {regs}"
+            f"{t.sjw:>3} {_percent(t.sample_point):>6} {_percent(s.error):>7}     {regs}{flag}"
         )
     if len(lines) == 2:
         lines.append("(no setting gives this bit rate)")
@@ -323,7 +340,7 @@ def format_table(solutions: Iterable[Solution]) -> str:
 
 @dataclass(frozen=True, slots=True)
 class SeedRecipe:
-    """The Workshop 202 recipe's numbers as the seed computes them, what is wrong with them, and a fix.
+    """The Workshop 202 recipe's numbers as the workshop computes them, what is wrong with them, and a fix.
 
     `brp`, `prseg`, `seg1ph`, `seg2ph` and `sjw` are the recipe's values (BRP as the divider, segments in TQ);
     they may not be programmable, which is why they are plain ints. `notes` explain every inconsistency;
@@ -343,7 +360,7 @@ class SeedRecipe:
 
     @property
     def brp_register(self) -> int:
-        """The register value BRP<5:0> = brp - 1, the seed's "BRP = ((Fosc/N)/(2B)) - 1"."""
+        """The register value BRP<5:0> = brp - 1, the workshop recipe's "BRP = ((Fosc/N)/(2B)) - 1"."""
         return self.brp - 1
 
     @property
@@ -359,7 +376,7 @@ def seed_recipe(bit_rate: int | float | Fraction, fosc: int) -> SeedRecipe:
     """Run the Workshop 202 recipe (workshop extract §2.5) and report where it goes wrong.
 
     N = the largest of 8..25 for which (Fosc / N) / (2 * B) is a whole divider 1..64; BRP<5:0> = that - 1;
-    Phase Segment 2 = SJW = N * 0.30 rounded to the nearest TQ (halves up), as the seed's worked example
+    Phase Segment 2 = SJW = N * 0.30 rounded to the nearest TQ (halves up), as the workshop's worked example
     does (16 * 0.30 = 4.8 -> 5; the recipe text's "integer operation" would truncate, and a note says so when
     that differs); Prop = 2; Phase Segment 1 = N - 1 - 2 - Phase Segment 2.
     Raises `BitTimingError` if no N gives a whole divider.
@@ -394,7 +411,7 @@ def seed_recipe(bit_rate: int | float | Fraction, fosc: int) -> SeedRecipe:
         )
         notes.append(
             f"Phase Segment 2 = SJW = N x 0.30 = {n} x 0.30 = {float(exact_ps2):g} TQ is not a whole number: the "
-            f"recipe's \"integer operation\" truncates it to {truncated} TQ{consequence}, while the seed's worked "
+            f"recipe's \"integer operation\" truncates it to {truncated} TQ{consequence}, while the workshop's worked "
             f"example rounds it to {ps2} TQ; this kit follows the worked example"
         )
     broken = _range_problems(brp=brp, sjw=ps2, prseg=SEED_PROP_SEG_TQ, seg1ph=ps1, seg2ph=ps2)

@@ -5,6 +5,7 @@ The logical content only (identifier, format, RTR, DLC, data); how it looks on t
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 from appsim.errors import FrameError
 
 STANDARD_ID_MAX = 0x7FF

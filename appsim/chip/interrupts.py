@@ -4,9 +4,8 @@ Peripherals set latched flags (TMR1IF) or provide read-only status flags (TXIF, 
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from appsim.chip.sfr import INTERRUPT_REGISTERS, INTERRUPT_SOURCES
 

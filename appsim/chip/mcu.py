@@ -20,8 +20,17 @@ from appsim.chip.ecan.controller import ECAN
 from appsim.chip.interrupts import PeripheralInterrupts
 from appsim.chip.ports import PortJ
 from appsim.chip.sfr import (
-    ADC_REGISTERS, INTERRUPT_REGISTERS, PORTJ_REGISTERS, RUNNING_MCU, TIMER1_REGISTERS, USART_REGISTERS, GLCDPort,
-    SFRNames, firmware_entry, firmware_location, forget_firmware_code,
+    ADC_REGISTERS,
+    INTERRUPT_REGISTERS,
+    PORTJ_REGISTERS,
+    RUNNING_MCU,
+    TIMER1_REGISTERS,
+    USART_REGISTERS,
+    GLCDPort,
+    SFRNames,
+    firmware_entry,
+    firmware_location,
+    forget_firmware_code,
 )
 from appsim.chip.timer1 import Timer1
 from appsim.chip.usart import USART

@@ -7,12 +7,34 @@ from __future__ import annotations
 import functools
 from collections import deque
 from collections.abc import Callable
-from typing import NamedTuple, TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from appsim.chip.interrupts import PeripheralInterrupts
 from appsim.chip.sfr import (
-    ABDEN, ADDEN, BRG16, BRGH, CREN, CSRC, FERR, OERR, RCIDL, RCIF, RX9, RX9D, SCKP, SENDB, SPEN, SREN, SYNC,
-    TRMT, TX9, TX9D, TXEN, TXIF, USART_REGISTERS, WUE,
+    ABDEN,
+    ADDEN,
+    BRG16,
+    BRGH,
+    CREN,
+    CSRC,
+    FERR,
+    OERR,
+    RCIDL,
+    RCIF,
+    RX9,
+    RX9D,
+    SCKP,
+    SENDB,
+    SPEN,
+    SREN,
+    SYNC,
+    TRMT,
+    TX9,
+    TX9D,
+    TXEN,
+    TXIF,
+    USART_REGISTERS,
+    WUE,
 )
 from appsim.sim import PS_PER_SECOND, Timer
 

@@ -1,17 +1,18 @@
 """What a firmware file imports: `from appsim.firmware import *`, as EX1.C includes CAN18XX8.h and p18f8680.h.
 
 The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit structs (`RXB0CONbits.RXFUL`).
+It acts only through the chip's SFR bus: may import appsim.chip, appsim.can, appsim.sim and appsim.errors.
 """
 from __future__ import annotations
 
 from appsim.chip.sfr import BITFIELDS, current_mcu
 from appsim.firmware import adc, an738, glcd, timers, usart
-from appsim.firmware.adc import *  # noqa: F403  (MPLAB C18 adc.h)
-from appsim.firmware.an738 import *  # noqa: F403  (the library's names, as the C header puts them in scope)
-from appsim.firmware.glcd import *  # noqa: F403  (APP023_GLCD.h)
+from appsim.firmware.adc import *
+from appsim.firmware.an738 import *
+from appsim.firmware.glcd import *
 from appsim.firmware.runtime import CALL_CYCLES
-from appsim.firmware.timers import *  # noqa: F403  (MPLAB C18 timers.h)
-from appsim.firmware.usart import *  # noqa: F403  (MPLAB C18 usart.h)
+from appsim.firmware.timers import *
+from appsim.firmware.usart import *
 
 
 class _SFRs:

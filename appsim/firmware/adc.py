@@ -14,7 +14,6 @@ from appsim.chip.sfr import GO_DONE as _GO_DONE
 from appsim.firmware.runtime import library_call
 
 
-
 def _is_int(value: object) -> TypeGuard[int]:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 

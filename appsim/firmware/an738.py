@@ -12,8 +12,8 @@ from typing import NamedTuple
 from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import pack_id, unpack_id
 from appsim.chip.sfr import FirmwareMCU
-from appsim.firmware.runtime import library_call
 from appsim.errors import AN738Error
+from appsim.firmware.runtime import library_call
 
 TRUE, FALSE = True, False
 

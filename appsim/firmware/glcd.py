@@ -10,7 +10,6 @@ from typing import Any
 from appsim.chip.sfr import GLCDPort, current_mcu
 from appsim.firmware.runtime import library_call
 
-
 NO_GLCD = "this MCU has no GLCD: the GLCD functions need firmware running on an APP023 board"
 
 

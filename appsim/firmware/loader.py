@@ -5,9 +5,12 @@ Each load is a fresh module, so two boards running the same file never share the
 from __future__ import annotations
 
 import ast
+import contextlib
+import io
 import itertools
 import linecache
 import re
+import sys
 import traceback
 from collections.abc import Mapping
 from pathlib import Path
@@ -50,8 +53,9 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
         report = traceback.TracebackException.from_exception(error)
         mine = [frame for frame in report.stack if frame.filename == str(path)]
         where = f"\n(line {mine[-1].lineno}: {mine[-1].line})" if mine else ""
-        what = list(report.format_exception_only())[-1].strip()
-        raise FirmwareError(f"{path.name} failed while loading, before main() ran: {what}. Only constants and "
+        what = _as_python_words_it(error, report)
+        end = "" if what.endswith((".", "?")) else "."          # "Did you mean: 'CANSetFilter'?" ends itself
+        raise FirmwareError(f"{path.name} failed while loading, before main() ran: {what}{end} Only constants and "
                             f"functions belong at the top of the file; CAN and LCD calls go inside main().{where}"
                             ) from error
     if not callable(getattr(module, "main", None)):
@@ -128,8 +132,22 @@ def crash_message(error: BaseException, filename: str | None) -> str:
     report = traceback.TracebackException.from_exception(error, limit=-TRACEBACK_FRAMES)
     mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
-    what = _past_the_data(error, filename) or list(report.format_exception_only())[-1].strip()
+    what = _past_the_data(error, filename) or _as_python_words_it(error, report)
     return f"main() crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+
+
+def _as_python_words_it(error: BaseException, report: traceback.TracebackException) -> str:
+    """The error's last line as Python prints it, "Did you mean: 'CANSetFilter'?" included. Before 3.12 only the
+    interpreter's own report makes that suggestion (the traceback module does not), so it is taken from there."""
+    what = list(report.format_exception_only())[-1].strip()
+    if sys.version_info < (3, 12) and isinstance(error, (NameError, AttributeError)):
+        printed = io.StringIO()
+        with contextlib.redirect_stderr(printed):
+            sys.__excepthook__(type(error), error, error.__traceback__)
+        _, found, suggestion = printed.getvalue().rstrip().rpartition(". Did you mean: ")
+        if found and "\n" not in suggestion:
+            what += f". Did you mean: {suggestion}"
+    return what
 
 
 _SUBSCRIPT = re.compile(r"\b([A-Za-z_]\w*)\[\s*(-?\w+)\s*\]")      # RxData[3], RxData[i]

@@ -9,16 +9,16 @@ from collections.abc import Collection, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
+from appsim.board.app023 import APP023
+from appsim.bus.wire import Bus
+from appsim.chip.mcu import PIC18F8680
 from appsim.firmware.an738 import (
     CAN_CONFIG_FLAGS,
     CANInitialize,
     CANIsRxReady,
     CANReceiveMessage,
 )
-from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus
 from appsim.firmware.loader import FirmwareError, constants, load_firmware
-from appsim.chip.mcu import PIC18F8680
 from appsim.workshop import course
 from appsim.workshop.course import CLASSROOM_EXERCISES, STATIONS, station_ids
 

@@ -49,13 +49,12 @@ def __getattr__(name: str) -> Path:
     if name not in _FILES:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     package, file = _FILES[name]
-    try:
+    root = Path(__file__).resolve().parents[2]
+    if (root / "pyproject.toml").is_file() and package != __package__:
+        # A source checkout (edited or run as python -m appsim) uses its own folders, whatever else is installed.
+        folder = root / package.rpartition(".")[2]
+    else:
         folder = Path(str(resources.files(package)))
-    except ModuleNotFoundError:
-        # A source checkout run as python -m appsim without pip install -e: the folders beside the package.
-        folder = Path(__file__).resolve().parents[2] / package.rpartition(".")[2]
-        if not folder.is_dir():
-            raise
     path = globals()[name] = folder / file
     return path
 

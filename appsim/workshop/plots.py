@@ -9,9 +9,11 @@ from itertools import groupby
 from typing import TYPE_CHECKING, Any, cast
 
 from appsim.bus import monitor
+from appsim.bus.bitlevel import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
+from appsim.bus.wire import BusEvent
+from appsim.can import physical
 from appsim.can.bits import WireBit, encode_annotated
 from appsim.can.bittiming import SYNC_SEG_TQ, BitTiming
-from appsim.bus.wire import BusEvent
 from appsim.can.frame import CanFrame
 from appsim.sim import PS_PER_SECOND
 
@@ -22,8 +24,11 @@ if TYPE_CHECKING:
 FIELD_COLOURS = {
     "SOF": "#f4cccc", "ID": "#fce5cd", "SRR": "#fff2cc", "IDE": "#fff2cc", "RTR": "#fff2cc", "r0": "#d9ead3",
     "r1": "#d9ead3", "DLC": "#d9ead3", "DATA": "#cfe2f3", "CRC": "#d9d2e9", "CRC delimiter": "#eeeeee",
-    "ACK slot": "#b6d7a8", "ACK delimiter": "#eeeeee", "EOF": "#eeeeee",
+    "ACK slot": "#b6d7a8", "ACK delimiter": "#eeeeee", "EOF": "#eeeeee", "error flag": "#ea9999",
+    "error delimiter": "#eeeeee",
 }
+FIELD_LABELS = {"CRC delimiter": "DEL", "ACK delimiter": "DEL", "ACK slot": "ACK", "error flag": "error\nflag",
+                "error delimiter": "error\ndelimiter"}
 ARBITRATION_FIELDS = frozenset({"SOF", "ID", "SRR", "IDE", "RTR"})
 SEGMENT_COLOURS = {"Sync": "#999999", "Prop": "#f6b26b", "Phase1": "#93c47d", "Phase2": "#6fa8dc"}
 ERROR_THRESHOLDS = ((96, "warning (96)"), (128, "error-passive (128)"), (256, "bus-off (TEC 256)"))
@@ -49,32 +54,46 @@ def _levels(ax: Axes, levels: Sequence[int], y: float = 0.0, x0: int = 0, **styl
     ax.step(xs, [y + level for level in levels] + [y + levels[-1]], where="post", **style)
 
 
+def _stuff_bits(ax: Axes, bits: Sequence[WireBit], y: float = 0.0) -> None:
+    """Outline the stuff bits of `bits` (drawn from bit 0 at height `y`) in red."""
+    from matplotlib.patches import Rectangle
+
+    for index, bit in enumerate(bits):
+        if bit.stuff:
+            ax.add_patch(Rectangle((index, y - 0.1), 1, 1.2, fill=False, edgecolor="red", linewidth=1.5, gid="stuff"))
+
+
 def wire_bits(frame: CanFrame, ax: Axes | None = None, *, acked: bool = True) -> Figure:
     """The frame on the wire, SOF..EOF: fields as coloured bands, stuff bits outlined in red.
 
-    `acked`: the ACK slot is dominant, as the receivers drive it; False draws it recessive, as a sender
-    alone on the bus sees it (an ACK error).
+    `acked`: the ACK slot is dominant, as the receivers drive it. False draws what a sender alone on the bus does: it
+    reads its ACK slot recessive (an ACK error) and from the next bit sends an error flag (6 dominant bits, as an
+    error-active node) and the error delimiter (8 recessive) instead of the ACK delimiter and EOF.
     """
     ax = _axes(ax, (14, 2.6))
-    from matplotlib.patches import Rectangle
-
     bits: list[WireBit] = encode_annotated(frame)
-    levels = [0 if acked and bit.field == "ACK slot" else bit.level for bit in bits]
+    if acked:
+        bits = [WireBit(0, bit.field) if bit.field == "ACK slot" else bit for bit in bits]
+    else:
+        bits = bits[:next(i for i, bit in enumerate(bits) if bit.field == "ACK slot") + 1]
+        bits += [WireBit(0, "error flag")] * ERROR_FLAG_BITS + [WireBit(1, "error delimiter")] * ERROR_DELIMITER_BITS
     position, narrow = 0, 0
     for field, run in groupby(bits, key=lambda bit: bit.field):
         width = len(list(run))
         ax.axvspan(position, position + width, color=FIELD_COLOURS[field], zorder=0)
-        label = {"CRC delimiter": "DEL", "ACK delimiter": "DEL", "ACK slot": "ACK"}.get(field, field)
         narrow = narrow + 1 if width < 3 else 0          # stagger the labels of one- and two-bit fields
-        ax.text(position + width / 2, 1.2 + 0.25 * (narrow % 2), label, ha="center", va="bottom", fontsize=8)
+        ax.text(position + width / 2, 1.2 + 0.25 * (narrow % 2), FIELD_LABELS.get(field, field), ha="center",
+                va="bottom", fontsize=8)
         position += width
-    for index, bit in enumerate(bits):
-        if bit.stuff:
-            ax.add_patch(Rectangle((index, -0.1), 1, 1.2, fill=False, edgecolor="red", linewidth=1.5, gid="stuff"))
-    _levels(ax, levels, color="black", linewidth=1.5)
+    _stuff_bits(ax, bits)
+    _levels(ax, [bit.level for bit in bits], color="black", linewidth=1.5)
     stuffed = sum(bit.stuff for bit in bits)
     kind = "remote" if frame.remote else "data"
-    ax.set_title(f"{kind} frame {frame}: {len(bits)} bits on the wire, {stuffed} of them stuff bits (red)")
+    if acked:
+        ax.set_title(f"{kind} frame {frame}: {len(bits)} bits on the wire, {stuffed} of them stuff bits (red)")
+    else:
+        ax.set_title(f"{kind} frame {frame} that nobody ACKs:\nits ACK slot stays recessive, so from the next bit "
+                     "the sender sends an error flag (6 dominant bits), then the error delimiter (8 recessive)")
     ax.set_xlim(0, len(bits))
     ax.set_ylim(-0.3, 1.8)
     ax.set_yticks([0, 1], ["dominant 0", "recessive 1"])
@@ -90,8 +109,9 @@ def arbitration(frames: Mapping[str, CanFrame], ax: Axes | None = None) -> Figur
     """
     if len(frames) < 2:
         raise ValueError("arbitration needs at least two nodes starting a frame at the same time")
-    sent = {name: [bit.level for bit in encode_annotated(frame) if bit.field in ARBITRATION_FIELDS]
-            for name, frame in frames.items()}
+    annotated = {name: [bit for bit in encode_annotated(frame) if bit.field in ARBITRATION_FIELDS]
+                 for name, frame in frames.items()}
+    sent = {name: [bit.level for bit in bits] for name, bits in annotated.items()}
     ax = _axes(ax, (12, 1.2 + 0.9 * (len(frames) + 1)))
     sending = set(frames)
     lost_at: dict[str, int] = {}
@@ -109,20 +129,90 @@ def arbitration(frames: Mapping[str, CanFrame], ax: Axes | None = None) -> Figur
         y = 2 * (len(rows) - row)
         stop = lost_at.get(name, len(sent[name]) - 1) + 1
         _levels(ax, sent[name][:stop], y, color="black", linewidth=1.5)
+        _stuff_bits(ax, annotated[name][:stop], y)
         if name in lost_at:
             if stop < length:
                 _levels(ax, bus[stop:], y, stop, color="#bbbbbb", linewidth=1)    # it only listens now
-            ax.plot(lost_at[name] + 0.5, y + 1.2, "rx", markersize=10)
-            ax.text(stop + 0.2, y + 1.25, f"lost at bit {lost_at[name]}", color="red", fontsize=9)
+            lost = lost_at[name]
+            ax.plot(lost + 0.5, y + 1.3, "rx", markersize=10)
+            left = lost > length / 2                    # the label on the side with room for it
+            ax.text(lost - 0.1 if left else lost + 1.1, y + 1.3, f"lost at bit {lost}", color="red", fontsize=9,
+                    ha="right" if left else "left", va="center")
     _levels(ax, bus, 0, color="tab:blue", linewidth=2)
     winner = next(name for name in rows if name not in lost_at)
+    _stuff_bits(ax, annotated[winner], 0)
     labels = [f"{name}  0x{frames[name].can_id:03X}" for name in rows] + ["bus (wired-AND)"]
     ax.set_yticks([2 * (len(rows) - row) + 0.5 for row in range(len(rows))] + [0.5], labels)
     ax.set_xticks(range(length + 1))
     ax.set_xlim(0, length)
-    ax.set_xlabel("bit from SOF (SOF, identifier MSB first, RTR)")
-    ax.set_title(f"{winner} wins arbitration: at the first bit that differs it sends dominant 0; lowest ID wins")
+    ax.set_ylim(-0.5, 2 * len(rows) + 1.8)
+    ax.set_xlabel("bit from SOF (identifier MSB first, then RTR; extended: SRR, IDE, 18 more ID bits); "
+                  "red boxes: stuff bits")
+    same_id = any(frames[name].base_id == frames[winner].base_id for name in lost_at)
+    why = ("same identifier: RTR (data beats remote) or IDE (standard beats extended) decides" if same_id
+           else "the lowest identifier wins")
+    ax.set_title(f"{winner} wins arbitration: at the first bit that differs it sends dominant 0\n{why}")
     return _figure(ax)
+
+
+def bus_levels(levels: Sequence[int], axes: Sequence[Axes] | None = None) -> Figure:
+    """The two wires under a run of bits: CANH and CANL, their difference, and what a receiver reads.
+
+    Nominal ISO 11898-2 levels (`appsim.can.physical`): recessive, both wires at 2.5 V (nobody drives); dominant,
+    CANH 3.5 V and CANL 1.5 V. Below it the bus as the termination sees it: 120 ohm at each end, nodes on stubs.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    if axes is None:
+        figure, axes = plt.subplots(3, 1, figsize=(12, 7), height_ratios=(2, 1.4, 1.3))
+    wires, difference, bus = axes
+    canh = [physical.CANH_CANL_VOLTS[level][0] for level in levels]
+    canl = [physical.CANH_CANL_VOLTS[level][1] for level in levels]
+    xs = range(len(levels) + 1)
+    wires.step(xs, canh + canh[-1:], where="post", color="tab:orange", linewidth=2, label="CANH")
+    wires.step(xs, canl + canl[-1:], where="post", color="tab:blue", linewidth=2, label="CANL")
+    for index, level in enumerate(levels):
+        wires.text(index + 0.5, 3.8, "D" if level == physical.DOMINANT else "R", ha="center", fontsize=8)
+    wires.set_ylim(1, 4.1)
+    wires.set_ylabel("volts")
+    wires.set_xlim(0, len(levels))
+    wires.legend(loc="lower right", fontsize=8)
+    wires.set_title("dominant (D, logic 0): CANH pulled up, CANL down; recessive (R, logic 1): nobody drives, "
+                    "both rest at 2.5 V")
+    vdiff = [physical.differential_volts(level) for level in levels]
+    difference.step(xs, vdiff + vdiff[-1:], where="post", color="black", linewidth=2)
+    difference.axhspan(physical.DOMINANT_ABOVE_VOLTS, 3, color="#f4cccc", zorder=0)
+    difference.axhspan(-0.5, physical.RECESSIVE_BELOW_VOLTS, color="#d9ead3", zorder=0)
+    difference.axhline(physical.WORKSHOP_DOMINANT_ABOVE_VOLTS, color="grey", linestyle="--", linewidth=1)
+    difference.set_title(f"a receiver reads dominant above {physical.DOMINANT_ABOVE_VOLTS} V (red; ISO 11898-2, "
+                         f"the workshop's transceiver slide says {physical.WORKSHOP_DOMINANT_ABOVE_VOLTS} V, dashed), "
+                         f"recessive below {physical.RECESSIVE_BELOW_VOLTS} V (green)", fontsize=10)
+    difference.set_xlim(0, len(levels))
+    for ax in (wires, difference):
+        ax.set_xticks(range(len(levels) + 1))
+    difference.set_ylim(-0.5, 2.6)
+    difference.set_ylabel("CANH - CANL (V)")
+    difference.set_xlabel("bit")
+    for y, name, colour in ((1, "CANH", "tab:orange"), (0, "CANL", "tab:blue")):
+        bus.plot([0.5, 9.5], [y, y], color=colour, linewidth=2)
+        bus.text(0.4, y, name, ha="right", va="center", fontsize=9)
+    for x in (0.8, 9.2):
+        bus.add_patch(Rectangle((x - 0.12, 0.2), 0.24, 0.6, facecolor="white", edgecolor="black", gid="terminator"))
+        bus.text(x + 0.2, 0.5, f"{physical.TERMINATION_OHMS} Ω", va="center", fontsize=9)
+        bus.plot([x, x], [0, 0.2], [x, x], [0.8, 1], color="black", linewidth=1)
+    for x, name in ((3, "node"), (5, "node"), (7, "node")):
+        bus.plot([x - 0.1, x - 0.1], [1, 1.6], [x + 0.1, x + 0.1], [0, 1.6], color="grey", linewidth=1)
+        bus.add_patch(Rectangle((x - 0.6, 1.6), 1.2, 0.5, facecolor="#cfe2f3", edgecolor="black", gid="node"))
+        bus.text(x, 1.85, f"{name}\n(transceiver)", ha="center", va="center", fontsize=8)
+    bus.set_xlim(0, 10)
+    bus.set_ylim(-0.3, 2.3)
+    bus.axis("off")
+    bus.set_title(f"one pair of wires, {physical.TERMINATION_OHMS} Ω at each end: "
+                  f"{float(physical.bus_resistance_ohms()):g} Ω between CANH and CANL", fontsize=10)
+    figure = _figure(wires)
+    figure.tight_layout()
+    return figure
 
 
 def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure:
@@ -147,7 +237,7 @@ def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure
     ax.set_ylim(-0.4, 1.5)
     ax.set_xticks(range(timing.tq_per_bit + 1))
     ax.set_yticks([])
-    ax.set_xlabel(f"time quanta (1 TQ = 2 x BRP {timing.brp} / Fosc = {tq_us:g} µs)")
+    ax.set_xlabel(f"time quanta (1 TQ = 2 x (BRP<5:0> + 1) / Fosc = 2 x {timing.brp} / Fosc = {tq_us:g} µs)")
     ax.set_title(f"one bit = {timing.tq_per_bit} TQ = {timing.tq_per_bit * tq_us:g} µs: "
                  f"{float(timing.bit_rate(fosc)) / 1000:g} kbit/s")
     return _figure(ax)
@@ -204,10 +294,12 @@ def error_counter_history(samples: Sequence[tuple[float, int, int]], ax: Axes | 
     ax.step(times, [s[1] for s in samples], where="post", label="TEC", color="tab:red", linewidth=2)
     ax.step(times, [s[2] for s in samples], where="post", label="REC", color="tab:blue", linewidth=2)
     top = max([s[1] for s in samples] + [s[2] for s in samples] + [140])
-    for level, name in ERROR_THRESHOLDS:
-        if level <= top + 20:
-            ax.axhline(level, color="grey", linestyle="--", linewidth=1)
-            ax.text(times[0] if times else 0, level + 3, name, color="grey", fontsize=8)
+    shown = [(level, name) for level, name in ERROR_THRESHOLDS if level <= top + 20]
+    for level, name in shown:
+        ax.axhline(level, color="grey", linestyle="--", linewidth=1)
+        ax.annotate(name, (0, level), xycoords=("axes fraction", "data"), xytext=(4, 2), textcoords="offset points",
+                    color="grey", fontsize=8, va="bottom", backgroundcolor="white")
+    ax.set_ylim(-5, max(top, shown[-1][0]) * 1.2)       # room above the top line for its label
     ax.set_xlabel("time (ms)")
     ax.set_ylabel("error counter")
     ax.set_title(f"error counters{' of ' + node if node else ''}")

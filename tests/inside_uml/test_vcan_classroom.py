@@ -4,10 +4,10 @@ from __future__ import annotations
 import subprocess
 import sys
 
-from appsim.bus.wire import Bus
-from appsim.workshop.classroom import Classroom
 from appsim.bus.link import BusLink
+from appsim.bus.wire import Bus
 from appsim.sim import PS_PER_SECOND, Simulator, ps
+from appsim.workshop.classroom import Classroom
 
 
 def run(sim: Simulator, link: BusLink, seconds: float) -> None:

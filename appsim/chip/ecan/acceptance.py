@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from appsim.can.frame import STANDARD_ID_MAX
 from appsim.chip.ecan.registers import EXIDE
 
 SID_BITS = 0x1FFC_0000      # the 11 bits SID10..0 (EID28..18) in a 29-bit identifier
@@ -82,3 +83,24 @@ def buffer_hit(can_id: int, extended: bool, rxm: int, filters: tuple[Filter, ...
         if filter_matches(can_id, extended, flt, mask_bits):
             return flt.number
     return None
+
+
+def passing_ids(mask: int, filter_: int) -> list[int]:
+    """The standard identifiers 0x000..0x7FF that a standard filter RXFn = `filter_` takes under mask RXMn = `mask`.
+
+    The data sheet's truth table, bit by bit: where the mask bit is 0 any identifier bit passes; where it is 1
+    the identifier bit must equal the filter bit. This is `filter_matches`, the test the simulated ECAN makes.
+    """
+    for name, value in (("mask", mask), ("filter", filter_)):
+        if not 0 <= value <= STANDARD_ID_MAX:
+            raise ValueError(f"a standard {name} is 11 bits, 0x000..0x{STANDARD_ID_MAX:03X}; got {value!r}")
+    flt = Filter(0, filter_ << STANDARD_SHIFT, exiden=False)
+    mask_bits = mask << STANDARD_SHIFT
+    return [can_id for can_id in range(STANDARD_ID_MAX + 1) if filter_matches(can_id, False, flt, mask_bits)]
+
+
+def id_pattern(mask: int, filter_: int) -> str:
+    """The identifiers a standard filter takes, as 11 bits SID10..SID0: the filter's bit where the mask compares,
+    `x` where it does not care (mask 0x7F0, filter 0x120 -> '001 0010 xxxx')."""
+    bits = "".join("x" if not mask >> n & 1 else str(filter_ >> n & 1) for n in range(10, -1, -1))
+    return f"{bits[:3]} {bits[3:7]} {bits[7:]}"

@@ -10,12 +10,11 @@ from dataclasses import dataclass
 from appsim.bus.bitlevel import Assembled
 from appsim.bus.controller import Mode, Wire
 from appsim.can.bittiming import BitTiming
+from appsim.can.frame import CanFrame
 from appsim.chip.clock import FOSC_HZ
 from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import Filter, buffer_hit, pack_id, raw29, unpack_id
-from appsim.can.frame import CanFrame
 from appsim.errors import UnsupportedMode
-
 
 # The mode each REQOP<2:0> requests: 1xx requests Configuration (101, 110 and 111 read back as OPMODE 100).
 # Looked up rather than built: CANCON is written at every CANCON.WIN change, and enum construction is slow.

@@ -14,7 +14,7 @@ from appsim.workshop.checks.trial import Fatal, Loadable, Trial, hex_id, placeme
 from appsim.workshop.checks.verdict import CheckResult, Verdict
 from appsim.workshop.course import EXERCISES, exercise_name, starter
 
-__all__ = ["EXERCISES", "CheckResult", "Verdict", "check", "check_names"]
+__all__ = ["EXERCISES", "CheckResult", "Verdict", "check", "check_names", "prepare"]
 
 RUNS = "firmware runs"
 NOT_JUDGED = "Not judged: the firmware did not run (see above)."
@@ -33,6 +33,15 @@ def not_judged(exercise: str | int, seed: int, fault: str, reason: str) -> Verdi
                                 *(CheckResult(n, False, NOT_JUDGED) for n in _MODULES[name].NAMES)), fault)
 
 
+def prepare(exercise: str, firmware: str | Path | ModuleType | Callable[[], object] | Loadable, seed: int,
+            message_id: int | None = None) -> Trial:
+    """The trial of `exercise` (as `exercise_name` gives it) for `firmware`, on the station `placement` picks (Demo1:
+    a board of its own); nothing runs yet. A firmware that does not load, or names no station's ID, is `Fatal`."""
+    loaded = resolve(firmware)
+    station, own_id = (1, None) if exercise == "demo1" else placement(exercise, loaded, message_id)
+    return Trial(exercise, loaded, station, seed, own_id)
+
+
 def check(exercise: str | int, firmware: str | Path | ModuleType | Callable[[], object] | Loadable | None = None,
           *, seed: int | None = None, message_id: int | None = None) -> Verdict:
     """Run `firmware` (a file, a loaded module, or a bare `main`; None: the starter exercises/exN.py) and judge it.
@@ -48,17 +57,14 @@ def check(exercise: str | int, firmware: str | Path | ModuleType | Callable[[], 
         raise TypeError(f"seed is an integer (or None for a fresh one); got {seed!r}")
     if message_id is not None and (not isinstance(message_id, int) or isinstance(message_id, bool)):
         raise TypeError(f"message_id is the station's MESSAGE_ID1, an integer such as 0x110; got {message_id!r}")
-    module = _MODULES[name]
     try:
-        loaded = resolve(starter(name) if firmware is None else firmware)
-        station, own_id = (1, None) if name == "demo1" else placement(name, loaded, message_id)
-        trial = Trial(name, loaded, station, seed, own_id)
-        results = module.run(trial)
+        trial = prepare(name, starter(name) if firmware is None else firmware, seed, message_id)
+        results = _MODULES[name].run(trial)
     except Fatal as fatal:
         return not_judged(name, seed, fatal.fault.kind, fatal.fault.message)
     where = ("as the CAN monitor" if name == "demo1"
-             else f"on station {station}'s board (MESSAGE_ID1 = {hex_id(trial.own_id)}"
+             else f"on station {trial.station}'s board (MESSAGE_ID1 = {hex_id(trial.own_id)}"
                   + (f", RTR_ID = {hex_id(trial.rtr_id)})" if name == "ex5" else ")"))
-    runs = CheckResult(RUNS, True, f"{loaded.label} ran {trial.now / 10**9:.0f} ms {where} without crashing, "
+    runs = CheckResult(RUNS, True, f"{trial.firmware.label} ran {trial.now / 10**9:.0f} ms {where} without crashing, "
                                    "main() still looping.")
     return Verdict(name, seed, (runs, *results))

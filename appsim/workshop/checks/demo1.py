@@ -8,9 +8,9 @@ from itertools import pairwise
 
 from appsim.bus.wire import BusEvent
 from appsim.chip.usart import PC_BAUD
-from appsim.workshop.checks.trial import Trial, count, listing
-from appsim.workshop.checks.verdict import CheckResult
 from appsim.sim import PS_PER_SECOND
+from appsim.workshop.checks.trial import Trial, count, listing, took_part
+from appsim.workshop.checks.verdict import CheckResult
 
 BAUD = "USART at 19200 baud"
 INVISIBLE = "listen-only: invisible on the bus"
@@ -19,9 +19,10 @@ LOST = "says when frames were lost"
 TIME = "time column counts up with the bus"
 NAMES = (BAUD, INVISIBLE, FORMAT, LOST, TIME)
 SECONDS = 1.0                     # ~95 frames on the bus, ~34 lines through 19200 baud: the queue fills, frames are lost
+BITS_PER_BYTE = 10                # 8N1: a start bit, 8 data bits, a stop bit
 BAUD_TOLERANCE = 0.02             # a UART receiver copes with about 2 %: 129 gives 19231 (+0.16 %)
 FEWEST_LINES = 5
-TIME_SLACK_S = 0.035              # a line can wait for the one before it (about 29 ms at 19200 baud)
+TIME_SLACK_S = 0.035              # a line can wait for the one before it (the solution's 55 bytes: 29 ms)
 FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD)  (DATA|RTR )  DLC (\d+)"
                         r"((?:  [0-9A-F]{2}(?: [0-9A-F]{2})*)?)$")
 LOST_COUNT = re.compile(r"lost (\d+) frames?")
@@ -82,10 +83,9 @@ def _baud(trial: Trial, received: bytearray) -> CheckResult:
 
 def _invisible(trial: Trial) -> CheckResult:
     sent = trial.sent()
-    acked = [e for e in trial.bus.trace if trial.name in e.acked_by]
+    acked = trial.acked()
     if sent or acked:
-        seen = f"sent {listing(sent)}" if sent else f"ACKed {count(len(acked), 'frame')}, the first {listing(acked[:1])}"
-        return CheckResult(INVISIBLE, False, f"The monitor {seen}: in {trial.mode()} mode it takes part in the bus it "
+        return CheckResult(INVISIBLE, False, f"The monitor {took_part(sent, acked)}: in {trial.mode()} mode it takes part in the bus it "
                                              "watches (a sender alone on the bus would think someone heard it). "
                                              "CANSetOperationMode(CAN_OP_MODE_LISTEN) after CANInitialize(): it "
                                              "never ACKs nor flags errors (TODO 2).")
@@ -113,10 +113,13 @@ def _lost(lines: list[str], matched: dict[int, int] | str, frames: list[BusEvent
         counts = [int(c) for note in notes for c in LOST_COUNT.findall(note)]
         after = f"after {lines[previous_line]!r}" if previous_line is not None else "before the first line"
         if missing and not notes:
+            size = len(lines[previous_line]) + 2 if previous_line is not None else None     # with CR LF
+            sending = (f"that line's {size} bytes take {size * BITS_PER_BYTE / PC_BAUD * 1000:.0f} ms"
+                       if size is not None else "a line takes tens of ms")
             return CheckResult(LOST, False, f"{count(len(missing), 'frame')} ({listing(missing, 2)}) went by on the "
                                             f"bus {after} and the monitor neither printed nor reported them as "
-                                            "lost. While putsUSART() sends a line (about 29 ms at 19200 baud) RXB0 "
-                                            "and RXB1 overflow: report CANMessageFlag & CAN_RX_OVERFLOW (TODO 3), "
+                                            f"lost. While putsUSART() sends a line ({sending} at 19200 baud, 8N1) "
+                                            "RXB0 and RXB1 overflow: report CANMessageFlag & CAN_RX_OVERFLOW (TODO 3), "
                                             "or keep frames in a queue and count what it cannot hold.")
         if counts and sum(counts) != len(missing):
             return CheckResult(LOST, False, f"{notes[0]!r} {after}, but {count(len(missing), 'frame')} went missing "

@@ -10,9 +10,9 @@ from appsim.workshop.checks.trial import (
     decimal_values,
     hex_id,
     hex_values,
-    listing,
     ms,
     took,
+    took_part,
 )
 from appsim.workshop.checks.verdict import CheckResult
 
@@ -34,11 +34,11 @@ def run(trial: Trial) -> list[CheckResult]:
 
 
 def _off_bus(trial: Trial, looped, on_bus) -> CheckResult:
-    acked = [e for e in trial.bus.trace if trial.name in e.acked_by]
+    acked = trial.acked()
     if on_bus or acked:
-        seen = f"sent {listing(on_bus)}" if on_bus else f"ACKed {listing(acked)}"
-        return CheckResult(OFF_BUS, False, f"Your node {seen} on the classroom bus: it is in {trial.mode()} mode. "
-                                           "Ex1 must not disturb the bus: CANInitialization() ends with "
+        return CheckResult(OFF_BUS, False, f"Your node {took_part(on_bus, acked)} on the classroom bus: it is in "
+                                           f"{trial.mode()} mode. Ex1 must not disturb the bus: CANInitialization() "
+                                           "ends with "
                                            "CANSetOperationMode(CAN_OP_MODE_LOOP), where the frame goes from TXB0 "
                                            "to the MAB and never to CANTX.")
     if not looped:
@@ -66,7 +66,8 @@ def _receives(trial: Trial, looped, on_bus) -> CheckResult:
                                         "goes through the masks and filters: "
                                         f"{trial.acceptance('RXB0')}, and MESSAGE_ID1 = {hex_id(trial.own_id)} "
                                         "matches no filter in the bits the mask compares. Set RX_Filter0 "
-                                        "to MESSAGE_ID1, or relax RX_Mask0 (see the TODO).")
+                                        "to MESSAGE_ID1 (or MESSAGE_ID1 to RX_Filter0), or relax RX_Mask0, or "
+                                        "receive everything with CAN_CONFIG_ALL_MSG (see the TODO).")
 
 
 def _lcd(trial: Trial, looped) -> CheckResult:

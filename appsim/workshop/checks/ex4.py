@@ -1,11 +1,11 @@
-"""Ex4's checks: Listen-only (no frame, no ACK) until the master's first 0x088, then Normal mode and sending,
-with the mask and filter set again after the second CANInitialize() so only 0x088 gets in.
+"""Ex4's checks: Listen-only (no frame, no ACK) until the master's first 0x088 has ended, then Normal mode and
+sending, with the mask and filter set again after the second CANInitialize() so only 0x088 gets in.
 """
 from __future__ import annotations
 
-from appsim.workshop.checks.ex3 import master_frames
+from appsim.bus.wire import Bus, BusEvent
 from appsim.workshop.checks.judging import data_frames, why_silent
-from appsim.workshop.checks.trial import MASTER_ID, Trial, count, describe, listing, ms, took
+from appsim.workshop.checks.trial import MASTER_ID, Trial, count, describe, listing, ms, took, took_part
 from appsim.workshop.checks.verdict import CheckResult
 
 LISTENS = "listen-only until the first 0x088"
@@ -17,25 +17,34 @@ STEPS_456 = ("after the first 0x088: CANSetOperationMode(CAN_OP_MODE_CONFIG), th
              "CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL) (TODO 4, 5, 6)")
 
 
+def before_the_first_0x088(bus: Bus, node: str) -> tuple[BusEvent, list[BusEvent]]:
+    """The master's first 0x088, and every frame `node` sent or ACKed that started before that 0x088 ended.
+
+    That 0x088 is one of them if `node` ACKed it: a node in Listen-only mode never ACKs, so it was not listening
+    when the 0x088 went by. A node that listens until then shows none. (The notebook shows the same list.)
+    """
+    first = next(e for e in bus.frames() if e.sender == "master" and e.frame.can_id == MASTER_ID
+                 and not e.frame.remote)      # the PC monitor interface ACKs it whatever the stations do
+    return first, [e for e in bus.trace if e.start_ps < first.end_ps and (e.sender == node or node in e.acked_by)]
+
+
 def run(trial: Trial) -> list[CheckResult]:
     trial.classroom(4, stations=2)
     trial.run(SECONDS)
-    first = master_frames(trial)[0]           # the PC monitor interface ACKs it whatever the stations do
+    first, before = before_the_first_0x088(trial.bus, trial.name)
     mine = [e for e in trial.sent() if e.start_ps >= first.end_ps]
-    return [_listens(trial, first), _joins(trial, first, mine), _filters(trial, mine)]
+    return [_listens(trial, first, before), _joins(trial, first, mine), _filters(trial, mine)]
 
 
-def _listens(trial: Trial, first) -> CheckResult:
-    before = [e for e in trial.bus.trace if e.start_ps < first.end_ps]
+def _listens(trial: Trial, first: BusEvent, before: list[BusEvent]) -> CheckResult:
     sent = [e for e in before if e.sender == trial.name]
     acked = [e for e in before if trial.name in e.acked_by]
     if sent or acked:
-        seen = f"sent {listing(sent)}" if sent else f"ACKed {listing(acked)}"
         return CheckResult(LISTENS, False, f"Before the master's first 0x088 ended ({ms(first.end_ps)}) your node "
-                                           f"{seen}: it was in Normal mode. A node in Listen-only mode sends nothing "
-                                           "and never ACKs. CANInitialize() returns in Normal mode, so call "
-                                           "CANSetOperationMode(CAN_OP_MODE_LISTEN) after it, with "
-                                           "CAN_CONFIG_ALL_MSG (TODO 1, 2).")
+                                           f"{took_part(sent, acked)}: it was in Normal mode. A node in Listen-only "
+                                           "mode sends nothing and never ACKs, not even the 0x088 it is waiting for. "
+                                           "CANInitialize() returns in Normal mode, so call CANSetOperationMode(CAN_OP_MODE_LISTEN) "
+                                           "after it, with CAN_CONFIG_ALL_MSG (TODO 1, 2).")
     heard = trial.reception(first)
     return CheckResult(LISTENS, True, f"Nothing sent, nothing ACKed until the master's first 0x088 ended at "
                                       f"{ms(first.end_ps)}" + (f" (it went into {heard})." if took(heard) else "."))

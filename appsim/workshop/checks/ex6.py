@@ -1,26 +1,27 @@
 """Ex6's checks: silent unless polled; an RTR for MESSAGE_ID1 (in RXB1) is answered with the A/D, RTRs for other
-IDs and data frames with the own ID are not. A test node of the check's own puts those frames on the bus.
+IDs are not, nor is a data frame with the own ID. A test node of the check's own puts those frames on the bus; the
+data frames with the station's ID make it a faulty node, since only the station itself sends those on a correct bus.
 """
 from __future__ import annotations
 
+from appsim.bus.wire import BusEvent
+from appsim.firmware import Delay1KTCYx
 from appsim.firmware.an738 import (
     CAN_CONFIG_FLAGS,
     CAN_TX_MSG_FLAGS,
     CANInitialize,
     CANSendMessage,
 )
-from appsim.bus.wire import BusEvent
 from appsim.workshop.checks.ex3 import master_frames
 from appsim.workshop.checks.judging import data_frames, why_silent
 from appsim.workshop.checks.trial import MS, Trial, count, describe, hex_id, listing, ms, took
 from appsim.workshop.checks.verdict import CheckResult
 from appsim.workshop.course import station_ids
-from appsim.firmware import Delay1KTCYx
 
 ANSWERS = "answers an RTR for MESSAGE_ID1 with its A/D"
 RXB1 = "RXB1 takes only MESSAGE_ID1"
 SILENT = "silent unless polled"
-DATA = "ignores data frames with its own ID"
+DATA = "ignores a faulty node's data frame with its own ID"
 NAMES = (ANSWERS, RXB1, SILENT, DATA)
 SECONDS = 0.17                    # the test node's frames from 65 ms, the master's first poll at ~100 ms
 ANSWER_WITHIN_PS = 2 * MS         # read RXB1, read the A/D, CANSendMessage: well under a millisecond
@@ -30,7 +31,11 @@ STANDARD, REMOTE = CAN_TX_MSG_FLAGS.CAN_TX_STD_FRAME, CAN_TX_MSG_FLAGS.CAN_TX_RT
 
 def test_node(own_id: int, other_id: int):
     """The check's test node: a data frame with the station's ID, RTRs for another station, for the station
-    (twice), and for an ID one bit away from it, 10-20 ms apart once the station is on the bus."""
+    (twice), and for an ID one bit away from it, 10-20 ms apart once the station is on the bus.
+
+    The data frames with the station's ID are a fault case: on a correct bus one node sends the data frames of an
+    identifier, here the station. They are timed away from the polls, so a correct station's answer and the test
+    node's data frame never meet in arbitration."""
     schedule = ((65, own_id, False), (75, other_id, True), (85, own_id, True), (105, own_id | 1, True),
                 (125, own_id, False), (135, own_id, True))
 
@@ -139,8 +144,11 @@ def _silent(trial: Trial, unasked) -> CheckResult:
 def _data(trial: Trial, unasked) -> CheckResult:
     wrong = [(s, t) for s, t in unasked if t is not None and not t.frame.remote and t.frame.can_id == trial.own_id]
     if not wrong:
-        return CheckResult(DATA, True, f"No answer to the data frames with ID {hex_id(trial.own_id)} from the test node.")
+        return CheckResult(DATA, True, f"No answer to the data frames with ID {hex_id(trial.own_id)} that the test "
+                                       "node sent, playing a faulty node (on a correct bus only you send them).")
     sent, trigger = wrong[0]
     return CheckResult(DATA, False, f"Answered the data frame {describe(trigger.frame)} from {trigger.sender} with "
-                                    f"{describe(sent.frame)} at {ms(sent.start_ps)}: a data frame with your ID is "
-                                    "not a request. Test CANMessageFlag & CAN_RX_RTR_FRAME before answering.")
+                                    f"{describe(sent.frame)} at {ms(sent.start_ps)}. On a correct bus only you send "
+                                    "data frames with your ID; the check's test node plays a faulty node that sends "
+                                    "one, and a data frame is not a request. Test CANMessageFlag & CAN_RX_RTR_FRAME "
+                                    "before answering.")

@@ -67,15 +67,21 @@ def identity_of(module: ModuleType) -> dict[str, int]:
     return {name: value for name, value in values.items() if isinstance(value, int) and not isinstance(value, bool)}
 
 
+def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmware:
+    """The firmware module `load()` gives (its code from `filename`, called `label`); one that does not load is
+    `Fatal`, with the loader's words."""
+    try:
+        module = load()
+    except FirmwareError as error:
+        raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
+    return Firmware(module.main, filename, label, identity_of(module))
+
+
 def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable) -> Firmware:
     """The firmware as a runnable thing; one that does not load is `Fatal`, with its line."""
     if isinstance(firmware, (str, Path)):
         path = Path(firmware)
-        try:
-            module = load_firmware(path)
-        except FirmwareError as error:
-            raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-        return Firmware(module.main, str(path), str(path), identity_of(module))
+        return loaded(lambda: load_firmware(path), str(path), str(path))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):
             raise Fatal(Fault("load", f"{firmware.__name__} has no main(): a firmware defines `def main():` that "
@@ -245,6 +251,10 @@ class Trial:
         """The student's frames on the bus (with the ones that ended in errors unless `ok_only`)."""
         return [e for e in self.bus.trace if e.sender == self.name and (e.ok or not ok_only)]
 
+    def acked(self) -> list[BusEvent]:
+        """The frames on the bus the student's node ACKed (a node in Normal mode ACKs every correct frame)."""
+        return [e for e in self.bus.trace if self.name in e.acked_by]
+
     def reception(self, event: BusEvent) -> str:
         """What the student's acceptance logic did with a frame ("" if the node did not take part)."""
         return dict(event.received).get(self.name, "")
@@ -274,6 +284,11 @@ def sid(ecan: ECAN, register: str) -> int:
 def took(reception: str) -> bool:
     """The acceptance logic put the frame in a receive buffer."""
     return reception.startswith("RXB")
+
+
+def took_part(sent: list[BusEvent], acked: list[BusEvent]) -> str:
+    """What a node that was to keep off the bus did there: `sent ...`, else `ACKed ...`."""
+    return f"sent {listing(sent)}" if sent else f"ACKed {listing(acked)}"
 
 
 def listing(events: Iterable[BusEvent], limit: int = 3) -> str:

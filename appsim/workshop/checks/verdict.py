@@ -5,6 +5,7 @@ Printable in a terminal (`str`), shown as a green/red table in Jupyter (`_repr_h
 from __future__ import annotations
 
 import html
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,21 +52,34 @@ class Verdict:
                            for c in self.checks]}
 
     def __str__(self) -> str:
-        lines = [f"{self.exercise.upper()}: {self.score}/{self.max_score} (seed {self.seed})"]
-        for check in self.checks:
-            lines.append(f"  {'PASS' if check.passed else 'FAIL'}  {check.name}")
-            lines.extend(f"        {line}" for line in check.message.splitlines())
-        return "\n".join(lines)
+        return f"{self.exercise.upper()}: {self.score}/{self.max_score} (seed {self.seed})\n{results_text(self.checks)}"
 
     def _repr_html_(self) -> str:
-        colour = "#1a7f37" if self.passed else "#cf222e"
-        rows = "".join(
-            f"<tr style='background:{'#dafbe1' if c.passed else '#ffebe9'}'>"
-            f"<td style='font-weight:bold;color:{'#1a7f37' if c.passed else '#cf222e'};padding:2px 8px'>"
-            f"{'PASS' if c.passed else 'FAIL'}</td>"
-            f"<td style='padding:2px 8px;white-space:nowrap'>{html.escape(c.name)}</td>"
-            f"<td style='padding:2px 8px;text-align:left;white-space:pre-wrap'>{html.escape(c.message)}</td></tr>"
-            for c in self.checks)
+        colour = GREEN if self.passed else RED
         return (f"<div><b style='color:{colour}'>{html.escape(self.exercise.upper())}: "
                 f"{self.score}/{self.max_score}</b> <span style='color:#57606a'>(seed {self.seed})</span>"
-                f"<table style='border-collapse:collapse'>{rows}</table></div>")
+                f"{results_html(self.checks)}</div>")
+
+
+GREEN, RED = "#1a7f37", "#cf222e"
+
+
+def results_text(checks: Sequence[CheckResult]) -> str:
+    """Results as a terminal shows them: PASS or FAIL and the name, the message indented below."""
+    lines = []
+    for check in checks:
+        lines.append(f"  {'PASS' if check.passed else 'FAIL'}  {check.name}")
+        lines.extend(f"        {line}" for line in check.message.splitlines())
+    return "\n".join(lines)
+
+
+def results_html(checks: Sequence[CheckResult]) -> str:
+    """Results as Jupyter shows them: a table, one green or red row each."""
+    rows = "".join(
+        f"<tr style='background:{'#dafbe1' if c.passed else '#ffebe9'}'>"
+        f"<td style='font-weight:bold;color:{GREEN if c.passed else RED};padding:2px 8px'>"
+        f"{'PASS' if c.passed else 'FAIL'}</td>"
+        f"<td style='padding:2px 8px;white-space:nowrap'>{html.escape(c.name)}</td>"
+        f"<td style='padding:2px 8px;text-align:left;white-space:pre-wrap'>{html.escape(c.message)}</td></tr>"
+        for c in checks)
+    return f"<table style='border-collapse:collapse'>{rows}</table>"

@@ -12,11 +12,13 @@ import json
 import os
 import random
 import selectors
+import signal
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, TextIO
 
@@ -111,9 +113,10 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
                   + (f"; {kept} already graded there with this seed and kit, kept" if kept else "")
                   + ("; NOT ISOLATED (--trusted)" if trusted else ""), file=out, flush=True)
             for number, record in enumerate(pool.grade(todo, seed, kit), start=1):
-                book.append(record)
-                previous[record["submission"]] = record
-                print(f"[{kept + number}/{len(submissions)}] {summary_line(record)}", file=out, flush=True)
+                with _ctrl_c_held():                # a record kept is a record reported, and the other way round
+                    book.append(record)
+                    previous[record["submission"]] = record
+                    print(f"[{kept + number}/{len(submissions)}] {summary_line(record)}", file=out, flush=True)
             book.rewrite(previous.values())
         finally:
             book.close()
@@ -200,6 +203,20 @@ class _Worker:
                 stream.close()
             except OSError:
                 pass
+
+
+@contextmanager
+def _ctrl_c_held() -> Iterator[None]:
+    """Ctrl-C (SIGINT) during the block takes effect when it ends. The grader's one thread holds it back; where signals
+    cannot be held (Windows), the block runs as it is."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 class _Pool:

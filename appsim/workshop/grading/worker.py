@@ -26,7 +26,7 @@ def main() -> None:
     isolation = None if settings["isolation"] is None else Isolation(**settings["isolation"])
     with Sandbox(isolation, Limits(**settings["limits"])) as sandbox:
         sandbox.warm()
-        from appsim.workshop.grading.grade import grade_exercise     # the simulator loads while the child boots
+        from appsim.workshop.grading.grade import grade_exercise  # the simulator loads while the child boots
 
         for line in sys.stdin:
             task: dict[str, Any] = json.loads(line)

@@ -4,6 +4,7 @@ up, and the next one is always booting. Light on imports, so a worker's first ch
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -16,6 +17,7 @@ from appsim.errors import SandboxUnavailable
 from appsim.workshop.sandbox import protocol as wire
 from appsim.workshop.sandbox.isolation import ENVIRONMENT, Isolation, import_path, seccomp_program
 from appsim.workshop.sandbox.protocol import Channel, ProtocolError
+from appsim.workshop.sandbox.usage import read_schedstat, schedstat
 
 BOOT = ("import json, sys; settings = json.loads(sys.argv[1]); sys.path[:0] = settings['path']; "
         "from appsim.workshop.sandbox.child import main; main(settings)")
@@ -55,7 +57,8 @@ DEFAULT_LIMITS = Limits()
 class Child:
     """One sandboxed Python process, booting or ready for its firmware, and the grader's ends of its two pipes.
 
-    `expires_at` (time.monotonic()) is when the watchdog ends it; `expired` says it did.
+    `expires_at` (time.monotonic()) is when the watchdog ends it, put off by the time its firmware waits for a CPU (on
+    a busy machine), never past `deadline`; `expired` says it did.
     """
 
     def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog):
@@ -75,8 +78,11 @@ class Child:
             theirs.append(read)
             argv = isolation.command(argv, read)
         self.expires_at = time.monotonic() + BOOT_S
+        self.deadline = math.inf
         self.expired = False
         self.isolated = isolation is not None
+        self._schedstat: int | None = None          # the firmware process's /proc schedstat, once it said hello
+        self._waited_s = 0.0
         try:
             self.process = subprocess.Popen(argv, pass_fds=theirs, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                             stderr=subprocess.PIPE, start_new_session=True, cwd="/",
@@ -91,12 +97,29 @@ class Child:
         watchdog.watch(self)
 
     def ready(self, deadline: float) -> bool:
-        """Whether it booted and said hello by `deadline`."""
+        """Whether it booted and said hello by `deadline` (which stays its last resort)."""
+        self.deadline = deadline
         self.expires_at = min(deadline, self.expires_at)
         try:
-            return self.channel.receive() == wire.HELLO
+            hello = self.channel.receive() == wire.HELLO
         except ProtocolError:
             return False
+        if hello and (pid := self.firmware_pid()) is not None:
+            self._schedstat = schedstat(f"/proc/{pid}/schedstat")
+            self._waited_s = self.waited_for_cpu()
+        return hello
+
+    def waited_for_cpu(self) -> float:
+        """Seconds its firmware's process has spent ready to run but waiting for a CPU (0 where that is not known)."""
+        counts = None if self._schedstat is None else read_schedstat(self._schedstat)
+        return 0.0 if counts is None else counts[1]
+
+    def put_off(self) -> None:
+        """Put `expires_at` off by the time the firmware waited for a CPU since the last look (a busy machine)."""
+        waited = self.waited_for_cpu()
+        if waited > self._waited_s:
+            self.expires_at = min(self.deadline, self.expires_at + waited - self._waited_s)
+            self._waited_s = waited
 
     def firmware_pid(self) -> int | None:
         """The firmware's own process as this system numbers it (inside the sandbox, bubblewrap's one child), None if
@@ -143,6 +166,9 @@ class Child:
     def kill(self) -> None:
         """End it (and, through its namespace, anything it left), and free what the grader holds of it."""
         self._watchdog.forget(self)
+        if self._schedstat is not None:
+            os.close(self._schedstat)
+            self._schedstat = None
         if self.process.poll() is None:
             self.process.kill()
         try:
@@ -153,7 +179,8 @@ class Child:
 
 
 class Watchdog:
-    """Ends each child whose `expires_at` has passed, which ends the grader's wait on it: one thread per grader."""
+    """Ends each child whose `expires_at` has passed, which ends the grader's wait on it: one thread per grader. At each
+    tick it first puts each child's end off by the time it waited for a CPU, so a busy machine stalls nobody."""
 
     TICK_S = 0.02
 
@@ -176,8 +203,10 @@ class Watchdog:
     def _run(self) -> None:
         while True:
             time.sleep(self.TICK_S)
-            now = time.monotonic()
             with self._lock:
+                for child in self._children:
+                    child.put_off()
+                now = time.monotonic()
                 for child in [c for c in self._children if c.expires_at <= now]:
                     self._children.discard(child)
                     child.expire()

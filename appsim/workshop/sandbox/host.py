@@ -1,7 +1,7 @@
 """The grader's side of a sandboxed firmware: a child loads the file, the board runs its main(), each access crosses.
 
-Every wait has a deadline (the time the firmware may go without a word, and a last-resort wall time); the grader's CPU
-time for it and the time it sleeps are counted against its limits (`usage`); every message is decoded strictly; whatever the child does, it ends as a `Fault` of its own exercise and nothing else.
+Every wait has a deadline; the grader's CPU time for it and the time it sleeps count against its limits (`usage`);
+every message is decoded strictly; whatever the child does, it ends as a `Fault` of its own exercise and nothing else.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ from appsim.workshop.sandbox.usage import Usage
 __all__ = ["DEFAULT_LIMITS", "Limits", "Sandbox", "SandboxedFirmware"]
 
 LONG_WAIT_S = 0.05                # a wait for the firmware this long is followed by a look at what it used
-READ_AHEAD_REGISTERS = 16         # a read-ahead offers the registers read last, this many at most: a main loop's (Ex2's reads ten)
+READ_AHEAD_REGISTERS = 16         # a read-ahead offers the registers read last, at most this many (Ex2 reads 10)
 
 
 # ====================================================================== a firmware file, run in a child
@@ -63,7 +63,9 @@ class SandboxedFirmware:
             if kind == wire.LOAD_FAILED:
                 raise Fatal(self._ends(Fault("load", f"the firmware does not load: {wire.decode_text(data)}")))
             ended = self._ending(kind, data)
-            raise ProtocolError(f"a message of kind {kind!r} while loading") if ended is None else Fatal(self._ends(ended))
+            if ended is None:
+                raise ProtocolError(f"a message of kind {kind!r} while loading")
+            raise Fatal(self._ends(ended))
         except ProtocolError as error:
             raise Fatal(self._ends(_protocol(error))) from None
 
@@ -273,8 +275,8 @@ class SandboxedFirmware:
 
     def _cpu_time(self) -> Fault:
         return Fault("time", f"CPU time limit: simulating the board for this firmware took the grader more than "
-                             f"{self.limits.time_s:g} s of CPU (a firmware that reads and writes registers without end, "
-                             "never waiting for the bus)")
+                             f"{self.limits.time_s:g} s of CPU (a firmware that reads and writes registers without "
+                             "end, never waiting for the bus)")
 
     def _ends(self, fault: Fault) -> Fault:
         self.close()

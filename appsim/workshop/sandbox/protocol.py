@@ -200,7 +200,7 @@ def decode_identity(data: bytes) -> dict[str, int]:
 
 
 def decode_text(data: bytes) -> str:
-    """A text the child worded (a traceback, a load error): at most MAX_TEXT bytes, printable, as the grader quotes it."""
+    """A text the child worded (a traceback, a load error): at most MAX_TEXT bytes, printable, as the grader quotes."""
     if len(data) > MAX_TEXT:
         raise ProtocolError(f"a text of {len(data)} bytes (at most {MAX_TEXT})")
     text = data.decode("utf-8", "replace")

@@ -12,19 +12,19 @@ from dataclasses import dataclass
 NS = 1e-9
 
 
-def _schedstat(path: str) -> int | None:
+def schedstat(path: str) -> int | None:
     """A descriptor of a task's /proc schedstat (time on a CPU, time waiting for one), or None where there is none."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
     except OSError:
         return None
-    if _read(fd) is None:
+    if read_schedstat(fd) is None:
         os.close(fd)
         return None
     return fd
 
 
-def _read(fd: int) -> tuple[float, float] | None:
+def read_schedstat(fd: int) -> tuple[float, float] | None:
     """(seconds on a CPU, seconds runnable and waiting for one); None once the task is gone."""
     try:
         fields = os.pread(fd, 128, 0).split()
@@ -46,25 +46,25 @@ class Usage:
 
     def __init__(self, pid: int | None):
         self._started = time.monotonic()
-        self._grader = _schedstat("/proc/thread-self/schedstat")
-        self._firmware = _schedstat(f"/proc/{pid}/schedstat") if pid is not None else None
+        self._grader = schedstat("/proc/thread-self/schedstat")
+        self._firmware = schedstat(f"/proc/{pid}/schedstat") if pid is not None else None
         self._cpu_started = time.process_time()
         self._grader_at = self._at(self._grader)
         self._firmware_at = self._at(self._firmware)
 
     @staticmethod
     def _at(fd: int | None) -> tuple[float, float]:
-        counts = None if fd is None else _read(fd)
+        counts = None if fd is None else read_schedstat(fd)
         return counts or (0.0, 0.0)
 
     def used(self) -> Used:
         grader_cpu = time.process_time() - self._cpu_started
         if self._grader is None or self._firmware is None:
             return Used(grader_cpu, None)
-        grader, firmware = _read(self._grader), _read(self._firmware)
+        grader, firmware = read_schedstat(self._grader), read_schedstat(self._firmware)
         if grader is None or firmware is None:
             return Used(grader_cpu, None)
-        busy = sum(now - then for now, then in zip(grader + firmware, self._grader_at + self._firmware_at))
+        busy = sum(now - then for now, then in zip(grader + firmware, self._grader_at + self._firmware_at, strict=True))
         return Used(grader_cpu, max(0.0, time.monotonic() - self._started - busy))
 
     def close(self) -> None:
