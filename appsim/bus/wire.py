@@ -504,10 +504,14 @@ class Bus:
         if any(run.outcomes[e[1].name].transmitted for e in entries):
             return ""
         why = f"{run.first_error} ({run.first_error_by})" if run.first_error else "no error flag"
-        alike = [e for e in entries if run.outcomes[e[1].name].lost_at_ps is None]
-        if len(alike) > 1:
-            why += (f"; two nodes sent identifier 0x{alike[0][3].can_id:X} at once with different contents "
-                    f"({', '.join(e[1].name for e in alike)})")
+        sending = [e for e in entries if run.outcomes[e[1].name].lost_at_ps is None]
+        names = ", ".join(e[1].name for e in sending)
+        if len(sending) > 1 and len({e[3].can_id for e in sending}) == 1:
+            count = "two" if len(sending) == 2 else str(len(sending))
+            why += (f"; {count} nodes sent identifier 0x{sending[0][3].can_id:X} at once with different contents "
+                    f"({names})")
+        elif len(sending) > 1:
+            why += f"; still sending when it came: {names}"
         wrong = [p.name for p in ports if not p.rate_ok]
         if wrong:
             why += f"; bit timing does not match the bus: {', '.join(wrong)}"
