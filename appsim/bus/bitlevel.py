@@ -79,8 +79,7 @@ class Outcome:
     """What happened to one station: all the wire needs to drive its controller."""
 
     name: str
-    transmitted: bool = False           # it sent a frame that went through (TEC - 1)
-    failed: bool = False                # it was sending when it detected an error (TXERR, retry)
+    transmitted: bool = False           # it sent a frame that went through (TEC - 1); a sender that did not: retry
     lost_at_ps: int | None = None       # it lost arbitration then
     received: CanFrame | None = None    # a valid frame (REC - 1, acceptance filters)
     tec_increment: int = 0
@@ -299,7 +298,6 @@ class _Node:
         """This node detected an error at this bit: count it (rules 1 and 3) and send its flag from the next bit."""
         out = self.out
         out.errors.append(f"{_LABEL[kind]} at bit {self.k}: {what}")
-        out.failed |= self.transmitting
         if out.flag_at_ps is None:
             out.flag_at_ps = self.bit_end()
             if self.bits and not self.transmitting:
