@@ -97,6 +97,19 @@ def _top(text: str) -> int:
     return _in_range(text, "--top is how many settings to list, a whole number: 1 or more", lambda value: value >= 1)
 
 
+def _injection(text: str) -> tuple[str, str, int, int | None]:
+    """NODE:KIND:BIT[:ID] -> the arguments of `Bus.inject` (node, kind, bit, can_id)."""
+    from appsim.bus.bitlevel import ERROR_KINDS
+    what = (f"an injected error is NODE:KIND:BIT[:ID], KIND one of {', '.join(ERROR_KINDS)}, BIT counted from SOF = 0, "
+            "ID the frame's identifier (default: the node's next frame), e.g. station1:stuff:30:0x100")
+    parts = text.split(":")
+    if not 3 <= len(parts) <= 4 or parts[1] not in ERROR_KINDS:
+        raise argparse.ArgumentTypeError(f"{what}; got {text!r}")
+    bit = _in_range(parts[2], what, lambda value: value >= 0)
+    can_id = _number(parts[3], what, lambda t: int(t, 0)) if len(parts) == 4 else None
+    return parts[0], parts[1], bit, can_id
+
+
 def cmd_demo(args: argparse.Namespace) -> int:
     from appsim import session
     return session.cmd_demo(args)
@@ -198,6 +211,10 @@ def build_parser() -> argparse.ArgumentParser:
                            help="with --join: which station your board takes, 1..6 (default 1); its MESSAGE_ID1 "
                                 "must be that station's, 0x100 + 0x10 x (station - 1)")
     classroom.add_argument("--full-trace", action="store_true", help="print every frame, not the first 40")
+    classroom.add_argument("--inject", type=_injection, action="append", metavar="NODE:KIND:BIT[:ID]",
+                           help="make NODE see an error in its next frame (with identifier ID): KIND bit, stuff, "
+                                "crc, form, ack or dominant, at bit BIT from SOF (docs/errors.md); give it again "
+                                "for more")
 
     monitor = commands.add_parser(
         "monitor", help="Demo1: the CAN monitor's USB-CDC serial port, live",

@@ -331,6 +331,12 @@ def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
                   f"0x{expected:03X}. Two nodes sending one ID with different data destroy each other's "
                   "frames (bit errors): set MESSAGE_ID1 to your station's ID.", file=sys.stderr)
         classroom.join(firmware, station)
+    for node, kind, bit, can_id in args.inject or ():
+        try:
+            session.bus.inject(node, kind, bit, can_id=can_id)
+        except KeyError:
+            raise SystemExit(f"appsim: --inject {node}:...: no node {node!r} in the classroom; its nodes are "
+                             f"{', '.join(board.name for board in session.bus.boards())}") from None
     who = f"; station{station} runs {args.join}" if args.join else ""
     print(f"Classroom at exercise {args.exercise}: the master and six stations running "
           f"solutions/ex{args.exercise}.py{who}.", file=out)

@@ -85,6 +85,10 @@ def receive():
     count it as lost instead."""
     global lost, dropping
     message = CANReceiveMessage()
+    if message.flags & CAN_RX_INVALID_MSG:     # RXM = 11 kept what came before an error: not a frame to show;
+        while CANIsRxReady():                  # IRXIF is one flag for both buffers, so what waits beside it
+            CANReceiveMessage()                # may be cut short too
+        return
     if message.flags & CAN_RX_OVERFLOW:
         queue.append(("overflow", 1))          # the ECAN dropped at least one frame before this one
     if len(queue) >= QUEUE_FRAMES:

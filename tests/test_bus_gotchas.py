@@ -105,28 +105,38 @@ def test_trace_is_identical_when_the_same_scenario_runs_twice():
 
 
 def test_bus_off_after_repeated_errors_and_recovery_after_128_sequences_of_11_recessive_bits(world):
-    """Two nodes send ID 0x100 at once with different data: a bit error each time, TEC += 8 for both,
-    error-passive at 128, bus-off at 256. Bus-off ends after 128 x 11 recessive bits, with TEC = 0."""
-    def clash(value):
-        def main():
-            CANInitialize(*CLASSROOM, CAN_CONFIG_ALL_MSG)
-            CANSendMessage(0x100, [value], 1, CAN_TX_STD_FRAME)
-            while True:
-                CANIsRxReady()
-        return main
-
-    a = world.node("a", clash(0xAA))
-    world.node("b", clash(0xBB))
+    """A node that sees a bit error in each of its frames (injected): TEC += 8 each time, error-passive at 128,
+    bus-off at 256 (32 frames). Bus-off ends after 128 x 11 recessive bits, with TEC = REC = 0."""
+    a = world.node("a", normal_node([(0x100, CAN_TX_PRIORITY_0)]))
     world.node("listener", normal_node())
-    seen_off = []
-    while not seen_off:
+    world.bus.inject("a", "bit", 20, frames=32)
+    while not a.ecan.bus_off:
         world.run(0.001)
-        if a.ecan.bus_off:
-            seen_off.append(world.sim.now)
+        assert world.sim.now < 100 * world.bus.bit_ps * 32 * 2, "never went bus-off"
     trace = world.bus.trace
-    assert len(trace) == 32 and all("two nodes sent identifier 0x100" in e.error for e in trace)
+    assert len(trace) == 32 and all(e.error.startswith("bit error at bit 20") for e in trace)
+    assert a.ecan.tec == 256
     recessive_from = trace[-1].end_ps - 8 * world.bus.bit_ps     # the error delimiter is recessive
     world.run(0.012)
     back = world.bus.trace[32]
     assert (back.start_ps - recessive_from) // world.bus.bit_ps == 128 * 11
-    assert a.ecan.tec >= 8 and not a.ecan.error_passive, "recovered error-active, counters reset"
+    assert back.ok and a.ecan.tec == 0 and not a.ecan.error_passive, "recovered error-active, counters reset"
+
+
+def test_leaving_loopback_waits_for_11_recessive_bits_as_leaving_configuration_does(world):
+    times = {}
+
+    def main():
+        CANInitialize(*CLASSROOM, CAN_CONFIG_ALL_MSG)
+        for mode in (CAN_OP_MODE_LOOP, CAN_OP_MODE_NORMAL):
+            asked = world.sim.time()
+            CANSetOperationMode(mode)           # returns once OPMODE shows the mode
+            times[mode] = world.sim.time() - asked
+        while True:
+            CANIsRxReady()
+
+    world.node("n", main)
+    world.run(0.01)
+    bit = world.bus.bit_ps
+    assert times[CAN_OP_MODE_LOOP] < bit, "from Normal on an idle bus: the bus's recessive bits were counted"
+    assert 11 * bit <= times[CAN_OP_MODE_NORMAL] < 12 * bit

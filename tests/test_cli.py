@@ -77,8 +77,16 @@ def test_joining_with_another_stations_id_warns_and_the_bus_shows_why(tmp_path):
     assert "two nodes sent identifier 0x100 at once" in result.stdout
 
 
+def test_classroom_injects_an_error_and_the_trace_shows_it_at_its_bit(capsys):
+    assert main(["classroom", "--exercise", "2", "--seconds", "0.15", "--inject", "station1:stuff:30:0x100"]) == 0
+    out = capsys.readouterr().out
+    assert "** stuff error at bit 30: six equal bits (injected) (station1)" in out
+    assert "1 error frames" in out
+
+
 @pytest.mark.parametrize("argv, complaint", [
     (["board", "no/such/file.py"], "no/such/file.py"),
+    (["classroom", "--inject", "nobody:bit:3"], "no node 'nobody' in the classroom; its nodes are master, station1"),
     (["board", "exercises/ex1.py", "--potentiometer", "2000"], "0..1023"),
     (["classroom", "--exercise", "7"], "the classroom's stations run Ex1..Ex6 (1..6, ex1..ex6); got '7'"),
     (["classroom", "--station", "9"], "stations are numbered 1..6"),
@@ -98,6 +106,7 @@ def test_bad_input_gets_a_clear_error(argv, complaint):
     (["classroom", "--station", "2"], "--station says which station your firmware takes, so it goes with --join: "
                                       "--join my_ex3.py --station 2"),
     (["classroom", "--exercise", "demo1"], "Demo1, the monitor, runs with: appsim monitor"),
+    (["classroom", "--inject", "station1:late:3"], "an injected error is NODE:KIND:BIT[:ID], KIND one of bit, stuff"),
     (["monitor", "--exercise", "x"], "the classroom's stations run Ex1..Ex6 (1..6, ex1..ex6); got 'x'"),
     (["check", "ex9"], "argument EXERCISE: exercise 'ex9' does not exist: the workshop has Ex1..Ex6 (1..6, ex1..ex6) "
                        "and demo1"),

@@ -80,14 +80,19 @@ def test_jtoff_is_a_read_only_copy_of_rxb0dben():
 
 def test_win_maps_each_buffer_onto_the_rxb0_window():
     ecan = ECAN()
-    for buffer, win in (("TXB0", 0b100), ("TXB1", 0b011), ("TXB2", 0b010), ("RXB1", 0b101)):
+    for buffer, win in (("TXB0", 0b100), ("TXB1", 0b011), ("TXB2", 0b010)):
         ecan.write(addr("CANCON"), 0x80 | (win << 1))
         ecan.write(addr("RXB0SIDH"), win + 0x10)         # written through the window
         assert ecan.get(buffer + "SIDH") == win + 0x10
+    ecan.write(addr("CANCON"), 0x80)
+    ecan.write(addr("RXB0CON"), R.RXB0DBEN)
+    ecan.frame_received(CanFrame(0x123, b"\x55"))         # RXM 00, filters and masks 0: into RXB0
+    ecan.frame_received(CanFrame(0x456, b"\x66"))         # RXB0 full, double buffering: into RXB1
+    ecan.write(addr("CANCON"), 0x80 | (0b101 << 1))
+    assert ecan.read(addr("RXB0SIDH")) == 0x456 >> 3, "RXB1 read through the window"
     for win in (0b000, 0b001, 0b110, 0b111):
         ecan.write(addr("CANCON"), 0x80 | (win << 1))
-        assert ecan.read(addr("RXB0SIDH")) == ecan.get("RXB0SIDH")
-    assert ecan.get("RXB0SIDH") == 0
+        assert ecan.read(addr("RXB0SIDH")) == ecan.get("RXB0SIDH") == 0x123 >> 3
 
 
 def test_writing_cancon_with_a_mode_value_clears_win_and_abat():
@@ -160,10 +165,47 @@ def test_abort_of_a_frame_on_the_wire_lets_it_finish_and_txabt_stays_clear():
     ecan.write(addr("TXB0CON"), R.TXREQ)
     ecan.transmission_started("TXB0")
     ecan.write(addr("CANCON"), 0x80 | R.ABAT)
-    assert ecan.read(addr("CANCON")) & R.ABAT == 0, "ABAT clears itself"
+    assert ecan.read(addr("CANCON")) & R.ABAT, "ABAT stays set while its abort waits for the frame on the wire"
     assert ecan.get("TXB0CON") & R.TXREQ, "the frame on the wire is still being sent"
     ecan.transmission_succeeded("TXB0")
     assert ecan.get("TXB0CON") & (R.TXREQ | R.TXABT) == 0 and ecan.get("PIR3") & R.TXB0IF
+    assert ecan.read(addr("CANCON")) & R.ABAT == 0, "ABAT clears itself once the abort is acted upon"
+
+
+def test_abat_with_nothing_on_the_wire_aborts_and_clears_at_once():
+    ecan = ECAN()
+    ecan.write(addr("TXB1CON"), R.TXREQ)
+    ecan.write(addr("CANCON"), 0x80 | R.ABAT)
+    assert ecan.read(addr("CANCON")) & R.ABAT == 0 and ecan.get("TXB1CON") & (R.TXREQ | R.TXABT) == R.TXABT
+
+
+def test_abat_on_a_frame_on_the_wire_that_fails_sets_txabt_and_clears():
+    ecan = ECAN()
+    ecan.write(addr("TXB0CON"), R.TXREQ)
+    ecan.transmission_started("TXB0")
+    ecan.write(addr("CANCON"), 0x80 | R.ABAT)
+    ecan.transmission_failed("TXB0")
+    assert ecan.get("TXB0CON") & (R.TXREQ | R.TXABT) == R.TXABT and ecan.read(addr("CANCON")) & R.ABAT == 0
+
+
+def test_receive_buffer_identifier_dlc_and_data_are_read_only_to_the_cpu():
+    ecan = ECAN()
+    ecan.frame_received(CanFrame(0x123, b"\x55\x66"))
+    before = [ecan.read(addr(f"RXB0{field}")) for field in R.BUFFER_FIELDS[1:]]
+    for field in R.BUFFER_FIELDS[1:]:
+        ecan.write(addr(f"RXB0{field}"), 0xA5)
+        ecan.write(addr(f"RXB1{field}"), 0xA5)
+    assert [ecan.read(addr(f"RXB0{field}")) for field in R.BUFFER_FIELDS[1:]] == before
+    assert all(ecan.get(f"RXB1{field}") == 0 for field in R.BUFFER_FIELDS[1:])
+
+
+def test_ciocon_is_written_only_in_configuration_mode_and_reads_in_any_mode():
+    ecan = ECAN()
+    ecan.write(addr("CIOCON"), 0x20)
+    ecan.write(addr("CANCON"), 0x00)
+    ecan.enter_requested_mode()
+    ecan.write(addr("CIOCON"), 0x10)
+    assert ecan.read(addr("CIOCON")) == 0x20 and ("CIOCON", 0x10) in ecan.ignored_writes
 
 
 def test_abort_of_a_frame_on_the_wire_that_fails_is_not_retried_and_sets_txabt():

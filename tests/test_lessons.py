@@ -378,12 +378,13 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "4 µs": lambda ns: micro(WRONG_BRP.tq_seconds(FOSC_HZ) * WRONG_BRP.tq_per_bit),
         "48 m": lambda ns: metres(physical.workshop_max_bus_length_metres(1_000_000)),
         "445 m": lambda ns: metres(physical.workshop_max_bus_length_metres(125_000)),
-        "100 ms": lambda ns: milli(Fraction(first_frame_of(ns, "wrong").start_ps, PS_PER_SECOND)),
+        "100 ms": lambda ns: milli(Fraction(100 * 10_000 * 4, FOSC_HZ)),    # the culprit's Delay10KTCYx(100)
         "53 ms": lambda ns: milli(Fraction(next(e for e in ns["room"].bus.trace if e.error).start_ps, PS_PER_SECOND)),
         "300 ms": lambda ns: milli(Fraction(ns["room"].bus.sim.now, PS_PER_SECOND)),
-        "TEC 235": lambda ns: f"TEC {ns['room'].master.ecan.tec}",
-        "TEC 140": lambda ns: f"TEC {ns['culprit'].ecan.tec}",
-        "1.2 s": lambda ns: f"{ns['bus_off_at']['master']:.1f} s",
+        "TEC 248": lambda ns: f"TEC {ns['room'].stations[2].ecan.tec}",
+        "TEC 136": lambda ns: f"TEC {ns['culprit'].ecan.tec}",
+        "REC 255": lambda ns: f"REC {min(b.ecan.rec for b in (ns['room'].master, *ns['room'].stations.values()) if b is not ns['room'].stations[2])}",
+        "0.305 s": lambda ns: f"{ns['bus_off_at']['station2']:.3f} s",
     },
     "ex4": {
         "TEC 128": lambda ns: "TEC " + str(8 * sum(1 for e in ns['lonely'].bus.trace
@@ -402,7 +403,7 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "32 bits": lambda ns: f"{wire_bits_of(EXTENDED_FRAME, 'ID', 'SRR', 'IDE', 'RTR')} bits",
         "132 bits": lambda ns: f"{max_frame_bits(8)} bits",
         "11 bits": lambda ns: f"{BUS_IDLE_BITS} bits",
-        **{text: lambda ns, text=text: verified_in("01_bit_timing", text) for text in ("TEC 235", "300 ms", "1.2 s")},
+        **{text: lambda ns, text=text: verified_in("01_bit_timing", text) for text in ("TEC 248", "300 ms", "0.305 s")},
     },
 }
 
@@ -427,10 +428,6 @@ def station_run(ns: dict, text: str) -> str:
     runs = {f"{match} s" for cell in read(ns["__notebook__"]).cells if cell.cell_type == "code"
             for match in re.findall(r"Station\([^)]*seconds=([0-9.]+)", cell.source)}
     return text if text in runs else f"the Station runs {sorted(runs)}"
-
-
-def first_frame_of(ns: dict, sender: str):
-    return next(e for e in ns["room"].bus.trace if e.sender == sender)
 
 
 def verified_in(source: str, text: str) -> str:

@@ -12,7 +12,7 @@ from test_bus_gotchas import normal_node
 from test_vcd import level_at, read_vcd, sigrok_cli, sigrok_decode  # noqa: F401 (sigrok_cli: a fixture)
 
 from appsim.bus.waveform import WaveformLog, wire_levels, write_waveform
-from appsim.bus.wire import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
+from appsim.bus.bitlevel import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
 from appsim.can.bits import encode, frame_bits
 from appsim.can.frame import CanFrame
 from appsim.errors import OutputError
@@ -49,7 +49,7 @@ def test_an_ack_error_shows_the_active_flag_in_the_ack_delimiter_and_then_a_pass
         "error-passive (TEC 128): its flag is recessive, the wire shows nothing"
 
 
-def test_two_stations_with_one_id_are_cut_by_error_flags():
+def test_two_stations_with_one_id_are_cut_by_error_flags_at_the_first_bit_they_differ():
     from appsim.bus.wire import Bus
     from appsim.sim import Simulator
     from appsim.workshop.classroom import Classroom
@@ -60,8 +60,10 @@ def test_two_stations_with_one_id_are_cut_by_error_flags():
     collision = next(e for e in bus.trace if "two nodes sent" in e.error)
     levels = wire_levels(collision, BIT_PS)
     cut = collision.flag_at_bit
-    assert levels[:cut] == list(encode(collision.frame))[:cut]
-    assert levels[cut:] == [0] * 2 * ERROR_FLAG_BITS + [1] * ERROR_DELIMITER_BITS, "flags and their echoes"
+    assert levels[:cut - 1] == list(encode(collision.frame))[:cut - 1], "the frame as sent, up to the bit they differ"
+    flags = levels[cut:].index(1)
+    assert ERROR_FLAG_BITS <= flags <= 2 * ERROR_FLAG_BITS, "flags and their echoes superposed"
+    assert levels[cut + flags:] == [1] * ERROR_DELIMITER_BITS
     assert len(levels) * BIT_PS == collision.end_ps - collision.start_ps
 
 
@@ -96,3 +98,27 @@ def test_every_command_that_runs_a_bus_writes_its_waveform(tmp_path, argv):
     timescale, changes = read_vcd(vcd.read_text())
     assert timescale == "1 us" and len(changes) > 100
     assert f"wrote {vcd} (waveform for PulseView, " in result.stdout
+
+
+def test_an_injected_error_frame_shows_at_its_bit_and_sigrok_decodes_the_frames_around_it(world, tmp_path,
+                                                                                           sigrok_cli):
+    """sigrok's CAN decoder has no error frames (decode_error_frame is a TODO in its can/pd.py): it reads on through
+    the flags as if the frame went on, and so misreads the retry that follows 3 bits after the delimiter. It warns
+    about what it misreads; the valid frames before and after decode intact."""
+    world.node("b", normal_node([(0x088, CAN_TX_PRIORITY_0)], delay_ms=1))
+    world.node("a", normal_node([(0x100, CAN_TX_PRIORITY_0)], delay_ms=3))
+    world.node("c", normal_node([(0x0F0, CAN_TX_PRIORITY_0)], delay_ms=6))
+    world.bus.inject("c", "stuff", 30, can_id=0x100)
+    world.run(0.01)
+    before, error, retry, after = world.bus.trace
+    levels = wire_levels(error, BIT_PS)
+    assert error.flag_at_bit == 31 and levels[:30] == list(encode(error.frame))[:30]
+    assert levels[31:31 + ERROR_FLAG_BITS] == [0] * ERROR_FLAG_BITS
+    assert retry.ok and retry.start_ps == error.end_ps + 3 * BIT_PS
+    path = write_waveform(world.bus, tmp_path / "bus.vcd")
+    decoded = sigrok_decode(sigrok_cli, path, 125_000)
+    clean = [d for d in decoded if d.ack == "ACK" and not d.warnings]
+    assert [d.frame() for d in clean] == [before.frame, after.frame]
+    assert [d.start * TICK_PS for d in clean] == pytest.approx([before.start_ps, after.start_ps], abs=TICK_PS)
+    assert any(d.warnings for d in decoded if abs(d.start * TICK_PS - error.start_ps) <= TICK_PS), \
+        "it warns at the error frame"

@@ -8,6 +8,7 @@ from __future__ import annotations
 import enum
 from typing import Protocol
 
+from appsim.bus.bitlevel import Assembled
 from appsim.can.bittiming import BitTiming
 from appsim.can.frame import CanFrame
 
@@ -66,7 +67,8 @@ class Controller(Protocol):
     def transmission_failed(self, buffer: str, *, tec_increment: int = 8) -> None: ...
     def frame_received(self, frame: CanFrame) -> object:
         """A valid frame for its acceptance logic; what that did with it, as the trace shows it (`str`)."""
-    def receive_error(self, *, rec_increment: int = 1) -> None: ...
+    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None) -> None:
+        """It detected an error as a receiver (or a silent listener); `assembled`: what it had read up to it."""
     def bus_activity(self) -> None:
         """A start of frame on the bus (wakes a sleeping controller)."""
     def bus_off_recovery(self, sequences: int) -> None: ...

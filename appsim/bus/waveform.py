@@ -8,21 +8,27 @@ import io
 from pathlib import Path
 
 from appsim.bus.monitor import EventFile
-from appsim.bus.wire import ERROR_DELIMITER_BITS, Bus, BusEvent
-from appsim.can.bits import encode
+from appsim.bus.wire import Bus, BusEvent
 from appsim.can.vcd import VcdWriter, acked_bits, tick_for
 
 PS_PER_NS = 1000
 
 
 def wire_levels(event: BusEvent, bit_ps: int) -> list[int]:
-    """An event's levels on the line, bit by bit from SOF: a frame that went through, acknowledged; or the frame up to
-    where an error flag cut it, the flag (dominant, or an error-passive sender's recessive one) and its delimiter."""
-    if event.ok:
+    """An event's levels on the line, bit by bit from SOF: a frame that went through, acknowledged; or, for a frame the
+    bus ran bit by bit (errors), the wire as it was in the middle of each bus bit: the frame up to where an error flag
+    cut it, the flags (dominant, or an error-passive node's recessive one), delimiters and any overload flags."""
+    if not event.wire:
         return acked_bits(event.frame)
-    cut = event.flag_at_bit
-    flag = (event.end_ps - event.start_ps) // bit_ps - cut - ERROR_DELIMITER_BITS
-    return [*encode(event.frame)[:cut], *[0 if event.flag_dominant else 1] * flag, *[1] * ERROR_DELIMITER_BITS]
+    levels, changes, level = [], iter(event.wire), 1
+    change = next(changes, None)
+    for bit in range(-(-(event.end_ps - event.start_ps) // bit_ps)):
+        middle = event.start_ps + bit * bit_ps + bit_ps // 2
+        while change is not None and change[0] <= middle:
+            level = change[1]
+            change = next(changes, None)
+        levels.append(level)
+    return levels
 
 
 class WaveformLog(EventFile):

@@ -1,7 +1,8 @@
-"""A CAN bus on the simulated clock: arbitration, ACK, error frames and fault confinement, frame by frame.
+"""A CAN bus on the simulated clock: arbitration, ACK, error frames and fault confinement.
 
-A frame holds the bus for its exact stuffed length plus intermission at the bus bit rate; who wins,
-who ACKs and who flags an error is decided at SOF from each node's mode, error state and bit timing.
+A frame holds the bus for its exact stuffed length plus intermission at the bus bit rate, decided at SOF; a frame
+where a node's bit rate differs, nobody would ACK, two nodes send one identifier or an error is injected runs bit by
+bit (`appsim.bus.bitlevel`), each node seeing the wire at its own sample points.
 """
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Protocol, TypeVar
 
+from appsim.bus.bitlevel import Assembled, Injection, Outcome, Run, Station, run_frame
 from appsim.bus.controller import Controller, Mode, Node
 from appsim.bus.trace import TRACE_WINDOW, Trace
 from appsim.can.bits import INTERMISSION_BITS, frame_bits
@@ -18,11 +20,8 @@ from appsim.can.bittiming import BitTiming, BitTimingError
 from appsim.can.frame import CanFrame
 from appsim.sim import PS_PER_SECOND, Simulator, Timer
 
-ERROR_FLAG_BITS = 6
-ERROR_DELIMITER_BITS = 8
 SUSPEND_TRANSMISSION_BITS = 8
 BUS_IDLE_BITS = 11                  # mode changes, bus-off recovery: 11 consecutive recessive bits
-DESTROYED_AT_BIT = 10               # where a node at the wrong bit rate typically flags a stuff error
 
 AnyNode = TypeVar("AnyNode", bound=Node)
 
@@ -38,10 +37,10 @@ class BusEvent:
     acked_by: tuple[str, ...] = ()
     error: str = ""                  # "" for a good frame, else what went wrong, in CAN terms
     received: tuple[tuple[str, str], ...] = ()   # (node, what its acceptance logic did)
-    # An error: the bit of the frame (from SOF) where the error flag began, and whether the flag was dominant (an
-    # error-passive sender's is recessive). What a logic analyser would see; not part of the event's repr.
-    flag_at_bit: int = field(default=0, repr=False, compare=False)
-    flag_dominant: bool = field(default=True, repr=False, compare=False)
+    # Not part of the event's repr: the bus bit (SOF = 0) where the first error flag starts (None: no flag), and for
+    # a frame run bit by bit, the wire as a logic analyser records it, (time, level) at each change from SOF.
+    flag_at_bit: int | None = field(default=None, repr=False, compare=False)
+    wire: tuple[tuple[int, int], ...] = field(default=(), repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
@@ -50,7 +49,7 @@ class BusEvent:
     def __str__(self) -> str:
         time = f"{self.end_ps / PS_PER_SECOND:12.6f}"       # when receivers have it, as the trace and logs say
         if self.error:
-            return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}"
+            return f"{time}  {self.sender:>10}  {self.frame}  ** {self.error}, error flag at bit {self.flag_at_bit}"
         acks = ",".join(self.acked_by) or "-"
         return f"{time}  {self.sender:>10}  {self.frame}  ACK by {acks}"
 
@@ -70,6 +69,10 @@ class _Port(Protocol):
     def bus_off(self) -> bool: ...
     @property
     def error_passive(self) -> bool: ...
+    @property
+    def tec(self) -> int: ...
+    @property
+    def rec(self) -> int: ...
     def pending(self) -> tuple[str, CanFrame] | None:
         """The buffer and frame this node would send next, if any."""
     def started(self, buffer: str) -> None: ...
@@ -78,8 +81,10 @@ class _Port(Protocol):
     def failed(self, buffer: str, tec_increment: int) -> None: ...
     def receive(self, frame: CanFrame) -> str:
         """A frame went through: take it; returns what the node did with it, for the trace."""
-    def receive_error(self, rec_increment: int) -> None: ...
+    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None: ...
     def activity(self) -> None: ...
+    def clock(self, bus_bit_ps: int) -> tuple[int, int]:
+        """Its bit time and sample point in ps (the bus's bit time when its rate is within tolerance)."""
 
 
 @dataclass(eq=False)
@@ -112,6 +117,19 @@ class _NodePort(_Port):
     def error_passive(self) -> bool:
         return self.controller.error_passive
 
+    @property
+    def tec(self) -> int:
+        return self.controller.tec
+
+    @property
+    def rec(self) -> int:
+        return self.controller.rec
+
+    def clock(self, bus_bit_ps: int) -> tuple[int, int]:
+        timing = self.controller.bit_timing()
+        bit_ps = bus_bit_ps if self.rate_ok else timing.bit_time_ps(self.controller.fosc)
+        return bit_ps, int(bit_ps * timing.sample_point)
+
     def pending(self) -> tuple[str, CanFrame] | None:
         buffer = self.controller.next_transmission()
         return None if buffer is None else (buffer, self.controller.frame_in(buffer))
@@ -131,8 +149,8 @@ class _NodePort(_Port):
     def receive(self, frame: CanFrame) -> str:
         return str(self.controller.frame_received(frame))
 
-    def receive_error(self, rec_increment: int) -> None:
-        self.controller.receive_error(rec_increment=rec_increment)
+    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None:
+        self.controller.receive_error(rec_increment=rec_increment, assembled=assembled)
 
     def activity(self) -> None:
         self.controller.bus_activity()
@@ -160,6 +178,8 @@ class _LinkPort(_Port):
     mode: Mode = Mode.NORMAL
     bus_off: bool = False
     error_passive: bool = False
+    tec: int = 0
+    rec: int = 0
 
     @property
     def name(self) -> str:
@@ -171,8 +191,11 @@ class _LinkPort(_Port):
     def started(self, buffer: str) -> None: ...
     def lost(self, buffer: str) -> None: ...
     def failed(self, buffer: str, tec_increment: int) -> None: ...
-    def receive_error(self, rec_increment: int) -> None: ...
+    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None: ...
     def activity(self) -> None: ...
+
+    def clock(self, bus_bit_ps: int) -> tuple[int, int]:
+        return bus_bit_ps, bus_bit_ps * 3 // 4
 
     def succeeded(self, buffer: str) -> None:
         self.queue.popleft()
@@ -213,6 +236,7 @@ class Bus:
         self.busy_until = 0          # end of the intermission after the last frame or error frame
         self._arbitration: Timer | None = None
         self._idle_timer: Timer | None = None
+        self._injections: list[list] = []     # [Injection, frames still to fire in]
 
     # ------------------------------------------------------------------ nodes
     def attach(self, node: AnyNode) -> AnyNode:
@@ -263,14 +287,15 @@ class Bus:
     def mode_requested(self, controller: Controller) -> None:
         """OPMODE follows REQOP after 11 consecutive recessive bits. A module that has been on the bus
         counts the recessive bits that end every frame (ACK delimiter, EOF, intermission) or error frame
-        (delimiter, intermission): it switches when the bus goes idle. One coming from Configuration or
-        Disable mode starts counting at the request, at its own bit time."""
+        (delimiter, intermission): it switches when the bus goes idle. One coming from Configuration,
+        Disable or Loopback mode (off the bus) starts counting at the request, or when its own loopback frame
+        ends, at its own bit time."""
         port = self._by_controller[id(controller)]
         if port.mode_timer is not None:
             return
         now = self.sim.time()
-        if port.mode in (Mode.CONFIGURATION, Mode.DISABLE):
-            when = max(now, self.busy_until) + BUS_IDLE_BITS * self._node_bit_ps(port)
+        if port.mode in (Mode.CONFIGURATION, Mode.DISABLE, Mode.LOOPBACK):
+            when = max(now, self.busy_until, port.loop_busy_until) + BUS_IDLE_BITS * self._node_bit_ps(port)
         else:
             when = max(now, self.busy_until)
         port.mode_timer = self.sim.call_at(when, lambda: self._change_mode(port))
@@ -327,7 +352,7 @@ class Bus:
         return port.mode in modes and not port.bus_off
 
     def _start_of_frame(self) -> None:
-        """SOF: the pending frames arbitrate; the outcome of the winner's frame is fixed here."""
+        """SOF: the pending frames arbitrate; the outcome of the frame is fixed here."""
         self._arbitration = None
         now = self.sim.now
         if self.busy_until > now:
@@ -357,54 +382,31 @@ class Bus:
             entries.append((_arbitration_key(frame), port, buffer, frame))
         entries.sort(key=lambda e: e[0])
         key, sender, buffer, frame = entries[0]
-        for loser_key, port, lost_buffer, _ in entries[1:]:
-            if loser_key == key:
-                continue   # same identifier: both keep sending; settled below as a collision
-            lost_at = now + _first_difference(key, loser_key) * self.bit_ps
-            self.sim.call_at(lost_at, functools.partial(port.lost, lost_buffer))
         same_id = [e for e in entries[1:] if e[0] == key]
-        self._transmit(now, sender, buffer, frame, same_id)
-
-    def _transmit(self, start: int, sender: _Port, buffer: str, frame: CanFrame,
-                  same_id: list[tuple[int, _Port, str, CanFrame]]) -> None:
-        bits = frame_bits(frame)
-        others = [p for p in self.ports if p is not sender and all(p is not e[1] for e in same_id)]
-        listeners = [p for p in others if self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
-        if not sender.rate_ok:
-            # Nobody at the bus bit rate can read this frame: every active node flags it.
-            flaggers = [p for p in listeners if p.rate_ok and p.mode == Mode.NORMAL and not p.error_passive]
-            if flaggers:
-                self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
-                                  "sent at the wrong bit rate: the other nodes flagged it",
-                                  flaggers, listeners, tec_increment=8)
-                return
-        wrong_rate = [p for p in listeners if not p.rate_ok]
-        destroyers = [p for p in wrong_rate if p.mode == Mode.NORMAL and not p.error_passive]
-        if destroyers and sender.rate_ok:
-            self._error_frame(start, DESTROYED_AT_BIT, sender, buffer, frame, "bit error",
-                              f"destroyed by error flags of {', '.join(p.name for p in destroyers)} "
-                              "(bit timing does not match the bus)", destroyers, listeners, tec_increment=8)
-            return
-        if same_id and any(e[3] != frame for e in same_id):
-            colliders = [e[1] for e in same_id]
-            self._error_frame(start, 13, sender, buffer, frame, "bit error",
-                              f"two nodes sent identifier 0x{frame.can_id:X} at once with different "
-                              f"contents ({', '.join(p.name for p in [sender] + colliders)})",
-                              colliders, listeners, tec_increment=8, also_failed=same_id)
-            return
-        good = [p for p in listeners if p.rate_ok]
-        ackers = tuple(p.name for p in good if p.mode == Mode.NORMAL)
+        senders = {id(sender)} | {id(e[1]) for e in same_id}
+        listeners = [p for p in self.ports if id(p) not in senders and self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
+        injections = self._injections_for(frame, [sender] + [e[1] for e in same_id] + listeners)
+        ackers = tuple(p.name for p in listeners if p.mode == Mode.NORMAL)
         if isinstance(sender, _LinkPort):
             ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
-        if not ackers:
-            self._ack_error(start, bits, sender, buffer, frame, good, wrong_rate)
+        if (injections or not ackers or any(e[3] != frame for e in same_id)
+                or not all(p.rate_ok for p in listeners) or not all(e[1].rate_ok for e in entries)):
+            self._bit_by_bit(now, entries, listeners, injections)
             return
-        end = start + bits * self.bit_ps
+        for loser_key, port, lost_buffer, _ in entries[1:]:
+            if loser_key != key:     # same identifier and contents: both send the same bits to the end
+                lost_at = now + _first_difference(key, loser_key) * self.bit_ps
+                self.sim.call_at(lost_at, functools.partial(port.lost, lost_buffer))
+        self._transmit(now, sender, buffer, frame, same_id, listeners, ackers)
+
+    def _transmit(self, start: int, sender: _Port, buffer: str, frame: CanFrame,
+                  same_id: list[tuple[int, _Port, str, CanFrame]], good: list[_Port], ackers: tuple[str, ...]) -> None:
+        """A frame that goes through: every node at the bus bit rate, nobody sees an error."""
+        end = start + frame_bits(frame) * self.bit_ps
         self.busy_until = end + INTERMISSION_BITS * self.bit_ps
 
         def end_of_frame() -> None:
             received = [(port.name, port.receive(frame)) for port in good]
-            self._flag_wrong_rate(wrong_rate)
             for _, port, twin, _ in [(None, sender, buffer, None)] + same_id:
                 port.succeeded(twin)
                 self._after_transmit(port)
@@ -413,62 +415,107 @@ class Bus:
 
         self.sim.call_at(end, end_of_frame)
 
-    def _ack_error(self, start: int, bits: int, sender: _Port, buffer: str, frame: CanFrame,
-                   good: list[_Port], wrong_rate: list[_Port]) -> None:
-        """Nobody ACKed. An error-active sender's flag makes the frame invalid for everyone; an
-        error-passive sender's recessive flag leaves it valid for receivers, and its TEC unchanged."""
-        passive = sender.error_passive
-        flag_at = bits - 8                                      # the ACK delimiter
-        end = start + (flag_at + ERROR_FLAG_BITS + ERROR_DELIMITER_BITS) * self.bit_ps
-        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
+    # ------------------------------------------------------------------ bit by bit
+    def inject(self, node: str, kind: str, bit: int = 0, *, can_id: int | None = None, frames: int = 1,
+               length: int = 1) -> Injection:
+        """Make `node` see an error of `kind` ("bit", "stuff", "crc", "form", "ack") at bit `bit` (SOF = 0), or drive
+        `length` dominant bits from there ("dominant"), in the next `frames` frames it takes part in (with
+        identifier `can_id`, if given); see `appsim.bus.bitlevel.Injection`."""
+        if all(port.name != node for port in self.ports):
+            raise KeyError(f"no node named {node!r} on this bus")
+        injection = Injection(node, kind, bit, can_id, frames, length)
+        self._injections.append([injection, frames])
+        return injection
 
-        def end_of_error() -> None:
-            received = []
-            for port in good:      # listen-only nodes: they never ACK
-                if passive:
-                    received.append((port.name, port.receive(frame)))
-                else:
-                    port.receive_error(rec_increment=0)
-                    received.append((port.name, "form error: active error flag in the ACK delimiter"))
-            self._flag_wrong_rate(wrong_rate)
-            sender.failed(buffer, tec_increment=0 if passive else 8)
-            self._after_transmit(sender)
-            self.trace.append(BusEvent(start, end, sender.name, frame, (), "ACK error: no node acknowledged",
-                                       tuple(received), flag_at_bit=flag_at, flag_dominant=not passive))
-            self._bus_idle()
+    def _injections_for(self, frame: CanFrame, ports: list[_Port]) -> dict[str, tuple[Injection, ...]]:
+        """The injections that fire in this frame, by node name."""
+        if not self._injections:
+            return {}
+        names = {port.name for port in ports}
+        firing: dict[str, tuple[Injection, ...]] = {}
+        for armed in self._injections:
+            injection = armed[0]
+            if injection.node in names and injection.can_id in (None, frame.can_id):
+                firing[injection.node] = firing.get(injection.node, ()) + (injection,)
+                armed[1] -= 1
+        self._injections = [armed for armed in self._injections if armed[1] > 0]
+        return firing
 
-        self.sim.call_at(end, end_of_error)
-
-    def _error_frame(self, start: int, at_bit: int, sender: _Port, buffer: str, frame: CanFrame,
-                     sender_error: str, why: str, flaggers: list[_Port], listeners: list[_Port], *,
-                     tec_increment: int, also_failed: list | None = None) -> None:
-        """The frame is cut at `at_bit` by error flags: 6 dominant bits, echoes, 8-bit delimiter."""
-        flag_bits = 2 * ERROR_FLAG_BITS
-        end = start + (at_bit + flag_bits + ERROR_DELIMITER_BITS) * self.bit_ps
-        self.busy_until = end + INTERMISSION_BITS * self.bit_ps
-
-        def end_of_error() -> None:
-            received = []
-            for port in listeners:
-                if port.mode == Mode.NORMAL:
-                    echo = 8 if port in flaggers and not port.rate_ok else 0
-                    port.receive_error(rec_increment=1 + echo)
-                else:
-                    port.receive_error(rec_increment=0)
-                received.append((port.name, "error frame"))
-            for port, failed_buffer in [(sender, buffer)] + [(e[1], e[2]) for e in also_failed or []]:
-                port.failed(failed_buffer, tec_increment=tec_increment)
-                self._after_transmit(port)
-            self.trace.append(BusEvent(start, end, sender.name, frame, (), f"{sender_error}: {why}",
-                                       tuple(received), flag_at_bit=at_bit))
-            self._bus_idle()
-
-        self.sim.call_at(end, end_of_error)
-
-    def _flag_wrong_rate(self, ports: list[_Port]) -> None:
-        """Error-passive nodes at the wrong bit rate see garbage: REC += 1 (listen-only: IRXIF only)."""
+    def _bit_by_bit(self, start: int, entries: list[tuple[int, _Port, str, CanFrame]], listeners: list[_Port],
+                    injections: dict[str, tuple[Injection, ...]]) -> None:
+        """The frame and any error frames bit by bit (`appsim.bus.bitlevel`); the controllers learn the outcome
+        when the last error delimiter ends, a node that lost arbitration at the bit where it lost."""
+        contending = {id(e[1]) for e in entries}
+        ports = [e[1] for e in entries] + [p for p in listeners if id(p) not in contending]
+        frames = {id(e[1]): e[3] for e in entries}
+        stations = []
         for port in ports:
-            port.receive_error(rec_increment=1 if port.mode == Mode.NORMAL else 0)
+            bit_ps, sample_ps = port.clock(self.bit_ps)
+            stations.append(Station(port.name, port.mode == Mode.LISTEN_ONLY, bit_ps, sample_ps, port.tec, port.rec,
+                                    frames.get(id(port)), injections.get(port.name, ())))
+        run = run_frame(start, stations)
+        buffers = {id(e[1]): e[2] for e in entries}
+        for _, port, buffer, _ in entries:
+            lost_at = run.outcomes[port.name].lost_at_ps
+            if lost_at is not None:
+                self.sim.call_at(lost_at, functools.partial(port.lost, buffer))
+        sender, frame = next(((e[1], e[3]) for e in entries if run.outcomes[e[1].name].lost_at_ps is None),
+                             (entries[0][1], entries[0][3]))
+        end = run.end_ps
+        self.busy_until = max(run.idle_ps, end + INTERMISSION_BITS * self.bit_ps)
+        error = self._describe(run, entries, ports)
+        flag_at_bit = None if run.first_error_ps is None else (run.first_error_ps - start) // self.bit_ps
+
+        def end_of_frame() -> None:
+            received = []
+            for port in ports:
+                outcome = run.outcomes[port.name]
+                if id(port) in buffers and outcome.lost_at_ps is None:
+                    if outcome.transmitted:
+                        port.succeeded(buffers[id(port)])
+                    else:
+                        port.failed(buffers[id(port)], tec_increment=outcome.tec_increment)
+                    self._after_transmit(port)
+                    continue
+                received.append((port.name, self._deliver(port, outcome)))
+            acked = () if error else tuple(p.name for p in ports if p is not sender and p.mode == Mode.NORMAL
+                                           and run.outcomes[p.name].received is not None)
+            if isinstance(sender, _LinkPort) and not error:
+                acked += (sender.name,)
+            self.trace.append(BusEvent(start, end, sender.name, frame, acked, error,
+                                       tuple(received), flag_at_bit, tuple(run.wire)))
+            self._bus_idle()
+
+        self.sim.call_at(end, end_of_frame)
+
+    @staticmethod
+    def _deliver(port: _Port, outcome: Outcome) -> str:
+        """A receiver's outcome to its controller: a valid frame, errors it detected, or both (overload)."""
+        done = []
+        if outcome.received is not None:
+            done.append(port.receive(outcome.received))
+        if outcome.errors:
+            port.receive_error(outcome.rec_increment, outcome.assembled)
+            done.append("; ".join(outcome.errors))
+        return "; ".join(done) or "nothing"
+
+    def _describe(self, run: Run, entries: list[tuple[int, _Port, str, CanFrame]], ports: list[_Port]) -> str:
+        """The trace's words for a frame that failed, "" for one that went through."""
+        if any(run.outcomes[e[1].name].transmitted for e in entries):
+            return ""
+        why = f"{run.first_error} ({run.first_error_by})" if run.first_error else "no error flag"
+        sending = [e for e in entries if run.outcomes[e[1].name].lost_at_ps is None]
+        names = ", ".join(e[1].name for e in sending)
+        if len(sending) > 1 and len({e[3].can_id for e in sending}) == 1:
+            count = "two" if len(sending) == 2 else str(len(sending))
+            why += (f"; {count} nodes sent identifier 0x{sending[0][3].can_id:X} at once with different contents "
+                    f"({names})")
+        elif len(sending) > 1:
+            why += f"; still sending when it came: {names}"
+        wrong = [p.name for p in ports if not p.rate_ok]
+        if wrong:
+            why += f"; bit timing does not match the bus: {', '.join(wrong)}"
+        return why
 
     def _after_transmit(self, port: _Port) -> None:
         """An error-passive transmitter waits 8 more bits (suspend transmission) before its next SOF."""

@@ -9,7 +9,8 @@ from itertools import groupby
 from typing import TYPE_CHECKING, Any, cast
 
 from appsim.bus import monitor
-from appsim.bus.wire import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS, BusEvent
+from appsim.bus.bitlevel import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
+from appsim.bus.wire import BusEvent
 from appsim.can import physical
 from appsim.can.bits import WireBit, encode_annotated
 from appsim.can.bittiming import SYNC_SEG_TQ, BitTiming

@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from appsim.bus.bitlevel import Assembled
 from appsim.bus.controller import Mode, Wire
 from appsim.can.bittiming import BitTiming
 from appsim.can.frame import CanFrame
@@ -163,7 +164,7 @@ class ECAN:
         reg = R.BY_ADDRESS.get(address)
         if reg is None:
             return
-        if reg.protected and self.opmode != _CONFIGURATION:
+        if (reg.protected or reg.locked) and self.opmode != _CONFIGURATION:
             self.ignored_writes.append((reg.name, value & 0xFF))
             return
         index = address - 0xF00
@@ -193,7 +194,7 @@ class ECAN:
                 for buffer in R.TX_BUFFERS:
                     if self.get(buffer + "CON") & R.TXREQ:
                         self._request_abort(buffer)
-                self._clearbits("CANCON", R.ABAT)     # ABAT clears itself once acted upon
+                self._abort_done()
             if _MODE_OF_REQOP[new >> 5] != self.opmode and self.wire:
                 self.wire.mode_requested(self)
         elif name in ("TXB0CON", "TXB1CON", "TXB2CON"):
@@ -214,6 +215,11 @@ class ECAN:
             raise UnsupportedMode(
                 f"ECANCON.MDSEL = {new >> 6:02b} selects ECAN Mode {new >> 6}; this kit models the "
                 "PIC18F8680 in legacy Mode 0 only, the mode the workshop and AN738 use (MDSEL = 00)")
+
+    def _abort_done(self) -> None:
+        """ABAT clears itself once every abort is carried out: at once, or when the frame on the wire ends."""
+        if not self._abort_requested:
+            self._clearbits("CANCON", R.ABAT)
 
     def _request_abort(self, buffer: str) -> None:
         """A frame not on the wire aborts at once; one on the wire is allowed to finish."""
@@ -303,6 +309,7 @@ class ECAN:
         """EOF reached with an ACK: TXREQ clears, TXBnIF sets, TEC counts down by one."""
         self.on_wire = None
         self._abort_requested.discard(buffer)
+        self._abort_done()
         self._clearbits(buffer + "CON", R.TXREQ)
         self._setbits("PIR3", R.TXBIF[buffer])
         self._set_counters(max(self.tec - 1, 0), self.rec)
@@ -333,6 +340,7 @@ class ECAN:
             self._abort_requested.discard(buffer)
             self._clearbits(buffer + "CON", R.TXREQ)
             self._setbits(buffer + "CON", R.TXABT)
+            self._abort_done()
 
     def bus_off_recovery(self, sequences: int) -> None:
         """Count occurrences of 11 recessive bits while bus-off; at 128 the node is error-active again."""
@@ -397,7 +405,7 @@ class ECAN:
         self._setbits("PIR3", R.ERRIF)
         return Reception(None, filter_number, flag)
 
-    def _load(self, buffer: str, frame: CanFrame, filter_number: int) -> Reception:
+    def _load(self, buffer: str, frame: CanFrame | Assembled, filter_number: int) -> Reception:
         """MAB -> RXBn: ID, DLC and data, RXRTRRO, FILHIT; then RXFUL and RXBnIF."""
         base = R.BUFFER_BASE[buffer] - 0xF00
         sfr = self._sfr
@@ -423,8 +431,24 @@ class ECAN:
             self._setbits("PIR3", R.WAKIF)
             self.changed()
 
-    def receive_error(self, *, rec_increment: int = 1) -> None:
-        """A receiver detected a CRC, stuff or form error: IRXIF sets, REC += 1 (or 8)."""
+    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None) -> None:
+        """A receiver detected a CRC, stuff, form or bit error: IRXIF sets, REC += the rules' increment. A buffer in
+        error-recognition mode (RXM = 11) stores what was assembled up to the error (DS39500 §5.5)."""
         self._setbits("PIR3", R.IRXIF)
         self._set_counters(self.tec, self.rec + rec_increment)
+        if assembled is not None:
+            self._store_invalid(assembled)
         self.changed()
+
+    def _store_invalid(self, assembled: Assembled) -> None:
+        """Error recognition: the first free buffer with RXM = 11 (RXB0 first) takes the identifier, DLC and the
+        whole data bytes received; the data registers after them keep what they held."""
+        sfr = self._sfr
+        for buffer in R.RX_BUFFERS:
+            base = R.BUFFER_BASE[buffer] - 0xF00
+            if (sfr[base] & R.RXM_MASK) != R.RXM_MASK or sfr[base] & R.RXFUL:
+                continue
+            filters, mask = self._acceptance_config()[buffer]
+            hit = buffer_hit(assembled.can_id, assembled.extended, 0b11, filters, mask)
+            self._load(buffer, assembled, hit if hit is not None else filters[0].number)
+            return

@@ -13,7 +13,8 @@ class Register:
 
     `writable` bits take the value written; `clear_only` bits (R/C) are cleared by writing 0 and
     ignore a 1; every other bit is read-only or unimplemented (U-0). `protected` registers can be
-    written only in Configuration mode and read as 0 in every other mode.
+    written only in Configuration mode and read as 0 in every other mode; `locked` ones can be written only
+    in Configuration mode and read as they are in every mode.
     """
 
     name: str
@@ -22,6 +23,7 @@ class Register:
     writable: int = 0xFF
     clear_only: int = 0x00
     protected: bool = False
+    locked: bool = False
 
 
 # Offsets of a message buffer block (TXBn, RXBn): CON, SIDH, SIDL, EIDH, EIDL, DLC, D0..D7.
@@ -37,14 +39,15 @@ WINDOW_FIRST, WINDOW_LAST = 0xF60, 0xF6D
 
 # Access of the buffer registers after the CON byte, by field (DS39500 §9.2).
 _TX_FIELD_ACCESS = {"SIDL": 0xEB, "DLC": 0x4F}          # SID2:0, EXIDE, EID17:16 / TXRTR, DLC3:0
-_RX_FIELD_ACCESS = {"SIDL": 0xFB, "DLC": 0x4F}          # SID2:0, SRR, EXID, EID17:16 / RXRTR, DLC
+# An RX buffer's identifier, DLC and data are read-only: only a received frame writes them (DS39500 gives R/W-x,
+# the PIC18F8680 data sheet R-x).
+_RX_FIELD_WRITABLE = 0x00
 
 
 def _buffer_registers() -> list[Register]:
     registers = []
     for buffer, base in BUFFER_BASE.items():
         is_tx = buffer.startswith("TX")
-        access = _TX_FIELD_ACCESS if is_tx else _RX_FIELD_ACCESS
         for offset, field in enumerate(BUFFER_FIELDS):
             if field == "CON":
                 if is_tx:   # TXABT TXLARB TXERR read-only; TXREQ, TXPRI1:0 R/W
@@ -55,7 +58,8 @@ def _buffer_registers() -> list[Register]:
                     registers.append(Register("RXB1CON", base, writable=0x60, clear_only=0x80))
             else:
                 registers.append(Register(f"{buffer}{field}", base + offset,
-                                          writable=access.get(field, 0xFF)))
+                                          writable=_TX_FIELD_ACCESS.get(field, 0xFF) if is_tx
+                                          else _RX_FIELD_WRITABLE))
     return registers
 
 
@@ -85,7 +89,9 @@ REGISTERS: tuple[Register, ...] = tuple(
         Register("BRGCON1", 0xF70, protected=True),
         Register("BRGCON2", 0xF71, protected=True),
         Register("BRGCON3", 0xF72, writable=0xC7, protected=True),   # WAKDIS, WAKFIL, SEG2PH2:0
-        Register("CIOCON", 0xF73, writable=0x30),                    # ENDRHI, CANCAP (PIC18F8680)
+        # ENDRHI, CANCAP (PIC18F8680). DS39500 names no register list for "all control registers" that
+        # Configuration mode locks; DS30475A's reading, that CIOCON is one of them, is taken (it reads in any mode).
+        Register("CIOCON", 0xF73, writable=0x30, locked=True),
         Register("COMSTAT", 0xF74, writable=0x00, clear_only=0xC0),  # RXB0OVFL, RXB1OVFL are R/C
         Register("RXERRCNT", 0xF75, writable=0x00),
         Register("TXERRCNT", 0xF76, writable=0x00),

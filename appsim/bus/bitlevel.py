@@ -1,0 +1,439 @@
+"""One frame on the wire bit by bit, as each node samples it at its own bit rate: the errors each node detects, its
+error and overload flags, delimiters and intermission, and the ISO 11898-1 error-counter changes they cause.
+
+The wire (`appsim.bus.wire`) runs this only for frames where something goes wrong or a node's bit rate differs;
+every node hard-synchronises on the SOF edge and is not resynchronised after it (a node outside the oscillator
+tolerance loses the bit grid within a few bits whatever it does).
+"""
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass, field
+
+from appsim.can.bits import crc15, encode_annotated
+from appsim.can.frame import CanFrame
+
+ERROR_FLAG_BITS = 6                 # an error or overload flag; a passive one ends after 6 equal bits
+ERROR_DELIMITER_BITS = 8
+ERROR_KINDS = ("bit", "stuff", "crc", "form", "ack", "dominant")
+_LABEL = {"bit": "bit error", "stuff": "stuff error", "crc": "CRC error", "form": "form error", "ack": "ACK error"}
+# The arbitration field: identifier and RTR; an extended frame's SRR and IDE too (a standard frame's IDE is control).
+_ARBITRATION_FIELDS = (frozenset(("ID", "RTR")), frozenset(("ID", "SRR", "IDE", "RTR")))
+_MAX_BUS_BITS = 2000        # no frame and error frames last this long; a guard against a run that never settles
+
+
+@dataclass(frozen=True, slots=True)
+class Injection:
+    """Make `node` see an error of `kind` at bit `bit` (SOF = 0, counted in its own bits, stuff bits included) of
+    the next frame it takes part in (with identifier `can_id`, if given), `frames` times.
+
+    bit: it samples the opposite of the wire at `bit` (a transmitter: a bit error there, also inside its own active
+    error flag; a receiver: whatever that wrong bit leads to). stuff: it sees a stuff error at `bit`. crc: its CRC
+    check fails (flag after the ACK delimiter; `bit` unused). form: it samples dominant at `bit` (a fixed-form bit:
+    CRC or ACK delimiter, EOF, error delimiter). ack: a transmitter sees the ACK slot recessive (`bit` unused).
+    dominant: it drives the wire dominant for `length` bits from `bit`, whatever it is doing (a faulty transceiver);
+    the other nodes see what follows."""
+
+    node: str
+    kind: str
+    bit: int = 0
+    can_id: int | None = None
+    frames: int = 1
+    length: int = 1
+
+    def __post_init__(self) -> None:
+        if self.kind not in ERROR_KINDS:
+            raise ValueError(f"no error kind {self.kind!r}: the kinds are {', '.join(ERROR_KINDS)}")
+        if self.bit < 0 or self.frames < 1:
+            raise ValueError("an injection needs a bit >= 0 (SOF is bit 0) and frames >= 1")
+
+
+@dataclass(frozen=True, slots=True)
+class Assembled:
+    """What a receiver had assembled when it detected an error: identifier, format, RTR, DLC and whole data bytes
+    (fewer than the DLC says when the error came first). Error-recognition mode (RXM = 11) stores it."""
+
+    can_id: int
+    extended: bool
+    remote: bool
+    dlc: int
+    data: bytes
+
+
+@dataclass(slots=True)
+class Station:
+    """A node as the bit engine sees it at SOF: its mode, bit clock, counters, frame to send and injected error."""
+
+    name: str
+    listen_only: bool
+    bit_ps: int
+    sample_ps: int
+    tec: int
+    rec: int
+    frame: CanFrame | None = None
+    injections: tuple[Injection, ...] = ()
+
+
+@dataclass(slots=True)
+class Outcome:
+    """What happened to one station: all the wire needs to drive its controller."""
+
+    name: str
+    transmitted: bool = False           # it sent a frame that went through (TEC - 1); a sender that did not: retry
+    lost_at_ps: int | None = None       # it lost arbitration then
+    received: CanFrame | None = None    # a valid frame (REC - 1, acceptance filters)
+    tec_increment: int = 0
+    rec_increment: int = 0
+    errors: list[str] = field(default_factory=list)    # "stuff error at bit 23: ...", in the order it saw them
+    assembled: Assembled | None = None                 # for error-recognition mode, at its first error
+    flag_at_ps: int | None = None        # where its first error flag started
+
+
+@dataclass(slots=True)
+class Run:
+    """The whole frame: each station's outcome, the wire as (time, level) changes from SOF, and when it is idle."""
+
+    outcomes: dict[str, Outcome]
+    wire: list[tuple[int, int]]
+    first_error_ps: int | None          # where the first error flag started on the wire
+    first_error: str                    # what the first node to flag saw, "" if none did
+    first_error_by: str                 # that node
+    end_ps: int                          # end of EOF or of the last error or overload delimiter
+    idle_ps: int                         # end of the intermission: the next SOF may start
+
+
+# Phases of a node's protocol state machine.
+_FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE = range(6)
+
+
+class _Node:
+    """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
+
+    def __init__(self, station: Station, sof_ps: int):
+        self.station = station
+        self.out = Outcome(station.name)
+        self.t0 = sof_ps
+        self.tec, self.rec = station.tec, station.rec
+        self.levels: list[int] = []           # what it drives, bit by bit from SOF
+        self.tx = encode_annotated(station.frame) if station.frame is not None else []
+        self.arbitration = _ARBITRATION_FIELDS[station.frame is not None and station.frame.extended]
+        self.transmitting = bool(self.tx)           # its role in the frame: stays set through its error frames
+        self.levels.append(0 if self.transmitting else 1)
+        self.k = 0                            # the bit being sampled, in its own bits from SOF
+        self.phase = _FRAME
+        # the frame as received: destuffing and the fields read so far
+        self.last, self.run = -1, 0
+        self.bits: list[int] = []
+        self.need: int | None = None          # unstuffed bits SOF..CRC end, once the DLC is read
+        self.tail = -1                        # position after the CRC sequence: 0 CRC delimiter .. 9 EOF7
+        self.crc_ok = True
+        # error and overload flags
+        self.active_flag = True
+        self.flag_bits = 0
+        self.equal_run, self.equal_level = 0, -1
+        self.dominant_in_flag = False
+        self.deferred_tec = 0
+        self.dominant_run = 0
+        self.first_after_flag = False
+        self.overload = False
+        self.count = 0
+        self.idle_ps = 0
+        self.end_ps = 0
+
+    # ----------------------------------------------------------------- clock
+    def sample_time(self) -> int:
+        return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
+
+    def bit_end(self) -> int:
+        return self.t0 + (self.k + 1) * self.station.bit_ps
+
+    def level_at(self, time: int) -> int:
+        k = (time - self.t0) // self.station.bit_ps
+        return self.levels[k] if 0 <= k < len(self.levels) else 1
+
+    @property
+    def passive(self) -> bool:
+        return self.station.listen_only or self.tec > 127 or self.rec > 127
+
+    # ----------------------------------------------------------------- one sample
+    def sample(self, wire: int) -> int:
+        """Read the wire at this bit's sample point; return what to drive in the next bit."""
+        for injection in self.station.injections:
+            if injection.bit == self.k and injection.kind in ("bit", "form"):
+                wire = 1 - wire if injection.kind == "bit" else 0
+        level = self._protocol_bit(wire)
+        for injection in self.station.injections:
+            if injection.kind == "dominant" and injection.bit <= self.k + 1 < injection.bit + injection.length:
+                level = 0
+        return level
+
+    def _protocol_bit(self, wire: int) -> int:
+        if self.phase == _FRAME:
+            return self._frame_bit(wire)
+        if self.phase == _FLAG:
+            return self._flag_bit(wire)
+        if self.phase == _AFTER_FLAG:
+            return self._after_flag_bit(wire)
+        if self.phase == _DELIMITER:
+            return self._delimiter_bit(wire)
+        if self.phase == _INTERMISSION:
+            return self._intermission_bit(wire)
+        if wire == 0:          # idle, and a dominant bit: someone's flag or frame, read as a new SOF
+            self._restart_frame()
+            return self._frame_bit(wire)
+        return 1
+
+    def _restart_frame(self) -> None:
+        self.phase, self.last, self.run, self.bits, self.need, self.tail = _FRAME, -1, 0, [], None, -1
+        self.crc_ok, self.transmitting = True, False
+
+    # ----------------------------------------------------------------- inside the frame
+    def _frame_bit(self, wire: int) -> int:
+        k = self.k
+        if self.transmitting:
+            sent = self.tx[k].level
+            field_name = self.tx[k].field
+            if field_name == "ACK slot":
+                if wire == 1 or self._injected("ack"):
+                    return self._error("ack", "no dominant bit in the ACK slot")
+            elif wire != sent:
+                if field_name in self.arbitration and sent == 1:
+                    if self.tx[k].stuff:
+                        return self._error("stuff", "a recessive stuff bit read dominant in arbitration",
+                                           tec=0)
+                    self.transmitting = False
+                    self.out.lost_at_ps = self.sample_time()
+                elif field_name in ("CRC delimiter", "ACK delimiter", "EOF"):
+                    return self._error("form", f"the {field_name} read dominant")
+                else:
+                    return self._error("bit", f"sent {'recessive' if sent else 'dominant'}, read "
+                                              f"{'dominant' if sent else 'recessive'}")
+        if self.tail < 0:
+            return self._stuffed_bit(wire)
+        return self._tail_bit(wire)
+
+    def _injected(self, kind: str, bit: int | None = None) -> bool:
+        return any(i.kind == kind and bit in (None, i.bit) for i in self.station.injections)
+
+    def _next_level(self) -> int:
+        """What this node drives in the next frame bit (a receiver: recessive, or dominant in the ACK slot)."""
+        k = self.k + 1
+        if self.transmitting:
+            return self.tx[k].level
+        if self.tail == 1 and self.crc_ok and not self.station.listen_only:
+            return 0                      # the next bit is the ACK slot: a receiver with a good CRC ACKs
+        return 1
+
+    def _stuffed_bit(self, wire: int) -> int:
+        if self._injected("stuff", self.k):
+            return self._error("stuff", "six equal bits (injected)")
+        if self.run == 5:                 # a stuff bit
+            if wire == self.last:
+                return self._error("stuff", f"six {'recessive' if wire else 'dominant'} bits in a row")
+            self.last, self.run = wire, 1
+            if self.need is not None and len(self.bits) == self.need:
+                self.tail = 0
+            return self._next_level()
+        if not self.bits and wire == 1:
+            return self._error("form", "a recessive SOF")
+        self.run = self.run + 1 if wire == self.last else 1
+        self.last = wire
+        self.bits.append(wire)
+        count = len(self.bits)
+        if self.need is None and count == (39 if self.bits[13:14] == [1] else 19):   # the DLC is in
+            dlc = _value(self.bits[count - 4:count])
+            remote = self.bits[12] if count == 19 else self.bits[32]
+            self.need = count + (0 if remote else 8 * min(dlc, 8)) + 15
+        if count == self.need:
+            received = _value(self.bits[count - 15:])
+            self.crc_ok = received == crc15(self.bits[:count - 15]) and not self._injected("crc")
+            if self.run != 5:
+                self.tail = 0
+        return self._next_level()
+
+    def _tail_bit(self, wire: int) -> int:
+        tail = self.tail
+        if tail in (0, 2) and wire == 0:
+            return self._error("form", "the CRC delimiter read dominant" if tail == 0
+                               else "the ACK delimiter read dominant")
+        if tail == 2 and not self.crc_ok and not self.transmitting:
+            return self._error("crc", "the CRC sequence does not match the bits received")
+        if 3 <= tail <= 9 and wire == 0:
+            if tail == 9 and not self.transmitting:     # the last EOF bit: the frame stands, then overload
+                return self._start_overload()
+            return self._error("form", f"end-of-frame bit {tail - 2} read dominant")
+        if tail == 8 and not self.transmitting:
+            self.out.received = self._frame()
+        if tail == 9:
+            if self.transmitting:
+                self.out.transmitted = True
+            self.end_ps = self.bit_end()
+            self.phase, self.count = _INTERMISSION, 0
+            return 1
+        self.tail = tail + 1
+        return self._next_level()
+
+    def _frame(self) -> CanFrame:
+        assembled = self._assembled()
+        if assembled.remote:
+            return CanFrame(assembled.can_id, extended=assembled.extended, remote=True, dlc=assembled.dlc)
+        return CanFrame(assembled.can_id, assembled.data, extended=assembled.extended, dlc=assembled.dlc)
+
+    def _assembled(self) -> Assembled:
+        """The fields received so far; bits not yet received read as 0."""
+        bits = self.bits + [0] * max(0, 39 - len(self.bits))
+        extended = bits[13] == 1 and len(self.bits) > 13
+        if extended:
+            can_id = _value(bits[1:12]) << 18 | _value(bits[14:32])
+            remote, header = bits[32] == 1, 39
+        else:
+            can_id, remote, header = _value(bits[1:12]), bits[12] == 1, 19
+        dlc = _value(bits[header - 4:header]) if len(self.bits) >= header else 0
+        whole = 0 if remote else min(min(dlc, 8), max(0, (len(self.bits) - header) // 8))
+        data = bytes(_value(self.bits[header + 8 * n:header + 8 * n + 8]) for n in range(whole))
+        return Assembled(can_id, extended, remote, dlc, data)
+
+    # ----------------------------------------------------------------- errors and flags
+    def _error(self, kind: str, what: str, *, tec: int = 8) -> int:
+        """This node detected an error at this bit: count it (rules 1 and 3) and send its flag from the next bit."""
+        out = self.out
+        out.errors.append(f"{_LABEL[kind]} at bit {self.k}: {what}")
+        if out.flag_at_ps is None:
+            out.flag_at_ps = self.bit_end()
+            if self.bits and not self.transmitting:
+                out.assembled = self._assembled()
+        self.active_flag = not self.passive
+        if not self.station.listen_only:
+            if self.transmitting:
+                if kind == "ack" and not self.active_flag:
+                    self.deferred_tec = 8     # rule 3, exception 1: only if it sees a dominant bit in its flag
+                else:
+                    self._count(tec=tec)      # rule 3 (exception 2: a stuff error in arbitration, tec=0)
+            else:
+                self._count(rec=1)            # rule 1
+        self.phase, self.flag_bits, self.overload = _FLAG, 0, False
+        self.equal_run, self.equal_level, self.dominant_in_flag = 0, -1, False
+        return 0 if self.active_flag else 1
+
+    def _start_overload(self) -> int:
+        if self.station.listen_only:
+            self.phase, self.count = _INTERMISSION, 0
+            return 1
+        self.phase, self.flag_bits, self.overload, self.active_flag = _FLAG, 0, True, True
+        return 0
+
+    def _count(self, *, tec: int = 0, rec: int = 0) -> None:
+        if self.station.listen_only:
+            return
+        self.tec += tec
+        self.rec += rec
+        self.out.tec_increment += tec
+        self.out.rec_increment += rec
+
+    def _eight_more(self) -> None:
+        """Rules 4, 5 and 6: +8 to the counter of the node's role in the frame."""
+        if self.transmitting:
+            self._count(tec=8)
+        else:
+            self._count(rec=8)
+
+    def _flag_bit(self, wire: int) -> int:
+        self.flag_bits += 1
+        if self.active_flag:
+            if wire == 1:                     # rules 4 and 5: a bit error in its own active or overload flag
+                self._eight_more()
+                self.flag_bits = 0
+                return 0
+            if self.flag_bits < ERROR_FLAG_BITS:
+                return 0
+            self.dominant_run = ERROR_FLAG_BITS
+        else:
+            self.dominant_in_flag |= wire == 0
+            self.equal_run = self.equal_run + 1 if wire == self.equal_level else 1
+            self.equal_level = wire
+            if self.equal_run < ERROR_FLAG_BITS:
+                return 1
+            if self.deferred_tec and self.dominant_in_flag:
+                self._count(tec=self.deferred_tec)
+            self.deferred_tec = 0
+            self.dominant_run = 0
+        self.phase, self.first_after_flag = _AFTER_FLAG, True
+        return 1
+
+    def _after_flag_bit(self, wire: int) -> int:
+        first, self.first_after_flag = self.first_after_flag, False
+        if wire == 1:
+            self.phase, self.count = _DELIMITER, 1
+            return 1
+        if first and not self.overload and not self.transmitting:
+            self._count(rec=8)                # rule 2: a receiver sees dominant right after its own flag
+        self.dominant_run += 1
+        limit = 14 if self.active_flag else 8
+        if self.dominant_run >= limit and (self.dominant_run - limit) % 8 == 0:
+            self._eight_more()                # rule 6: more than 7 dominant bits after a flag
+        return 1
+
+    def _delimiter_bit(self, wire: int) -> int:
+        if wire == 0:
+            if self.count == ERROR_DELIMITER_BITS - 1:     # the last delimiter bit dominant: an overload frame
+                return self._start_overload()
+            return self._error("form", "a dominant bit in the error delimiter")
+        self.count += 1
+        if self.count == ERROR_DELIMITER_BITS:
+            self.end_ps = self.bit_end()
+            self.phase, self.count = _INTERMISSION, 0
+        return 1
+
+    def _intermission_bit(self, wire: int) -> int:
+        if wire == 0:
+            return self._start_overload()
+        self.count += 1
+        if self.count == 3:
+            self.phase, self.idle_ps = _IDLE, self.bit_end()
+        return 1
+
+
+def _value(bits: list[int]) -> int:
+    value = 0
+    for bit in bits:
+        value = value << 1 | bit
+    return value
+
+
+def run_frame(sof_ps: int, stations: list[Station]) -> Run:
+    """Every station hard-synchronised on the SOF at `sof_ps`, bit by bit until all are idle again."""
+    nodes = [_Node(station, sof_ps) for station in stations]
+    queue = [(node.sample_time(), index) for index, node in enumerate(nodes)]
+    heapq.heapify(queue)
+    first_error_ps: int | None = None
+    first_error = first_error_by = ""
+    limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
+    while queue:
+        time, index = heapq.heappop(queue)
+        if all(n.phase == _IDLE for n in nodes):
+            break
+        if time > limit:
+            raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
+        node = nodes[index]
+        wire = min(other.level_at(time) for other in nodes)
+        errors = len(node.out.errors)
+        node.levels.append(node.sample(wire))
+        if first_error_ps is None and len(node.out.errors) > errors:
+            first_error_ps, first_error, first_error_by = node.out.flag_at_ps, node.out.errors[0], node.station.name
+        node.k += 1
+        heapq.heappush(queue, (node.sample_time(), index))
+    return Run({n.station.name: n.out for n in nodes}, _wire(nodes, sof_ps), first_error_ps, first_error, first_error_by,
+               max(n.end_ps for n in nodes), max(n.idle_ps for n in nodes))
+
+
+def _wire(nodes: list[_Node], sof_ps: int) -> list[tuple[int, int]]:
+    """The wire as (time, level) at each change: dominant wherever any node drives dominant."""
+    edges = sorted({node.t0 + k * node.station.bit_ps for node in nodes for k in range(len(node.levels) + 1)})
+    changes = []
+    level = 1
+    for time in edges:
+        now = min(node.level_at(time) for node in nodes)
+        if now != level:
+            changes.append((time, now))
+            level = now
+    return changes
