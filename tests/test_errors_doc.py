@@ -5,11 +5,11 @@ import re
 from pathlib import Path
 
 import pytest
-
-from appsim.firmware import *  # noqa: F403
 from conftest import World
 from test_bus_gotchas import normal_node
 from test_fault_confinement import same_identifier, wrong_rate_sender
+
+from appsim.firmware import *
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "errors.md"
 
@@ -92,4 +92,4 @@ def test_scenario_counters_match_the_doc(letter):
             world.run(0.0001)
             assert world.sim.now < 2 * 10**12, f"scenario {letter}: event {event} never came"
         got = [(nodes[name].ecan.tec, nodes[name].ecan.rec) for name in names]
-        assert got == expected, f"scenario {letter}, after event {event}: {dict(zip(names, got))}"
+        assert got == expected, f"scenario {letter}, after event {event}: {dict(zip(names, got, strict=True))}"

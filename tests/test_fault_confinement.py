@@ -2,11 +2,12 @@
 the error flag starts, two senders of one identifier, and wrong-rate frames that nobody takes as valid."""
 from __future__ import annotations
 
+from test_bus_gotchas import busy_bus, normal_node
+
 from appsim.can.bits import encode, frame_bits
 from appsim.can.frame import CanFrame
 from appsim.chip.ecan import registers as R
-from appsim.firmware import *  # noqa: F403
-from test_bus_gotchas import busy_bus, normal_node
+from appsim.firmware import *
 
 FRAME = CanFrame(0x100, bytes([1, 2, 3]))          # what normal_node sends: 73 bits, ACK delimiter at bit 65
 ACK_DELIMITER = frame_bits(FRAME) - 8
@@ -195,7 +196,7 @@ def same_identifier(world, b_passive):
 
 
 def first_difference(one, other):
-    return next(k for k, (x, y) in enumerate(zip(encode(one), encode(other))) if x != y)
+    return next(k for k, (x, y) in enumerate(zip(encode(one), encode(other), strict=False)) if x != y)
 
 
 def test_two_active_nodes_same_identifier_bit_error_at_the_first_differing_bit(world):

@@ -11,8 +11,8 @@ import pytest
 from test_bus_gotchas import normal_node
 from test_vcd import level_at, read_vcd, sigrok_cli, sigrok_decode  # noqa: F401 (sigrok_cli: a fixture)
 
-from appsim.bus.waveform import WaveformLog, wire_levels, write_waveform
 from appsim.bus.bitlevel import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
+from appsim.bus.waveform import WaveformLog, wire_levels, write_waveform
 from appsim.can.bits import encode, frame_bits
 from appsim.can.frame import CanFrame
 from appsim.errors import OutputError

@@ -422,8 +422,8 @@ def run_frame(sof_ps: int, stations: list[Station]) -> Run:
             first_error_ps, first_error, first_error_by = node.out.flag_at_ps, node.out.errors[0], node.station.name
         node.k += 1
         heapq.heappush(queue, (node.sample_time(), index))
-    return Run({n.station.name: n.out for n in nodes}, _wire(nodes, sof_ps), first_error_ps, first_error, first_error_by,
-               max(n.end_ps for n in nodes), max(n.idle_ps for n in nodes))
+    return Run({n.station.name: n.out for n in nodes}, _wire(nodes, sof_ps), first_error_ps, first_error,
+               first_error_by, max(n.end_ps for n in nodes), max(n.idle_ps for n in nodes))
 
 
 def _wire(nodes: list[_Node], sof_ps: int) -> list[tuple[int, int]]:
