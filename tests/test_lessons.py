@@ -424,7 +424,7 @@ VERIFIED: dict[str, set[str]] = {}
 
 
 def innocent_boards(room: Classroom) -> list:
-    """Notebook 01's classroom but its wrong-rate station 2."""
+    """Notebook 01's good nodes but station 2, which the prose quotes on its own (its TEC)."""
     return [b for b in (room.master, *room.stations.values()) if b is not room.stations[2]]
 
 
