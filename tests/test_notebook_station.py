@@ -8,13 +8,11 @@ import shutil
 from pathlib import Path
 
 import pytest
+from workshop import lone_node
 
-from appsim.board.app023 import APP023
 from appsim.bus.monitor import TraceTable, acks
-from appsim.bus.wire import Bus, BusEvent
+from appsim.bus.wire import BusEvent
 from appsim.can.frame import CanFrame
-from appsim.firmware import CAN_CONFIG_ALL_MSG, CAN_TX_PRIORITY_0, CANInitialize, CANIsRxReady, CANSendMessage
-from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import notebook
 from appsim.workshop.notebook import KNOB_SECONDS, NOTHING_RAN, Note, Station, check
 
@@ -174,17 +172,7 @@ def test_ack_in_a_few_words():
 
 
 def test_error_frames_stand_out_in_the_trace_and_the_timeline():
-    sim = Simulator()
-    bus = Bus(sim)
-
-    def alone():
-        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
-        CANSendMessage(0x100, [1], 1, CAN_TX_PRIORITY_0)
-        while True:
-            CANIsRxReady()
-
-    APP023(bus, "alone").run(alone)
-    sim.run(until=PS_PER_SECOND // 200)
+    bus = lone_node(0.005)
     table = TraceTable(bus.trace, ["alone"])
     shown = table._repr_html_()
     assert shown.count("background:#ffebe9") == len(bus.trace) > 0

@@ -8,20 +8,13 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt
 import pytest
+from workshop import lone_node
 
-from appsim.board.app023 import APP023
 from appsim.bus.monitor import bus_load
 from appsim.bus.wire import Bus
 from appsim.can.bits import encode, encode_annotated
 from appsim.can.bittiming import BitTiming
 from appsim.can.frame import CanFrame
-from appsim.firmware import (
-    CAN_CONFIG_ALL_MSG,
-    CAN_TX_PRIORITY_0,
-    CANInitialize,
-    CANIsRxReady,
-    CANSendMessage,
-)
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import plots
 from appsim.workshop.classroom import Classroom
@@ -144,17 +137,7 @@ def test_bus_timeline_one_row_per_sender_one_box_per_frame(ex2_room):
 
 
 def test_bus_timeline_paints_error_frames_apart():
-    sim = Simulator()
-    bus = Bus(sim)
-
-    def alone():
-        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
-        CANSendMessage(0x100, [1], 1, CAN_TX_PRIORITY_0)
-        while True:
-            CANIsRxReady()
-
-    APP023(bus, "alone").run(alone)
-    sim.run(until=PS_PER_SECOND // 100)
+    bus = lone_node(0.01)
     figure = plots.bus_timeline(bus.trace)
     assert bus.trace and all(event.error for event in bus.trace), "nobody ACKs a lone node"
     assert len(patches(figure, "error")) == len(bus.trace)
