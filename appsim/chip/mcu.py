@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import contextvars
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import greenlet
 
@@ -51,14 +50,21 @@ class Peripheral(Protocol):
 READ_AHEAD_MAX_PS = 1 << 62           # a horizon with no event ahead
 
 
-@dataclass(frozen=True)
-class ReadAhead:
-    """See `PIC18F8680.read_ahead`: the time the firmware may spend, the registers it may read without asking (address,
-    value, read since the last change), whether `sites` (address, call site) are the polling loop's at this change."""
+def _reads_zero(address: int) -> int:
+    """An address with nothing behind it reads 0."""
+    return 0
+
+
+class ReadAhead(NamedTuple):
+    """See `PIC18F8680.read_ahead`: the time the firmware may spend, whether `sites` (address, call site) are the
+    polling loop's at this change, the registers it may read without asking (their addresses; their values, and
+    whether each was read since the last change, both as bytes), and those sites."""
 
     budget_ps: int
     current: bool
-    entries: list[tuple[int, int, bool]]
+    addresses: tuple[int, ...]
+    values: bytes
+    seen: bytes
     sites: list[tuple[int, int]]
 
 
@@ -87,6 +93,10 @@ class PIC18F8680(SFRNames):
         self._polled_pure = True
         self._parked_on: dict[int, int] | None = None       # what a parked loop read (None: wake on any change)
         self.time_varying: set[int] = set()
+        # The registers a read-ahead offered last, and how each is read (see `read_ahead`).
+        self._offered: tuple[int, ...] | None = None
+        self._offered_addresses: tuple[int, ...] = ()
+        self._offered_readers: list[tuple[int, Callable[[int], int]]] = []
         self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
         self.process: Process | None = None
         self.glcd: GLCDPort | None = None                   # the board's display, if it has one
@@ -150,23 +160,30 @@ class PIC18F8680(SFRNames):
         self._parked_on = self._polled if self._polled_pure else None
         process.park()
 
-    def read_ahead(self, addresses: Iterable[int]) -> ReadAhead:
+    def read_ahead(self, addresses: tuple[int, ...]) -> ReadAhead:
         """What firmware that runs elsewhere (the grader's sandbox) may read without asking, right now.
 
         Nothing else runs until the firmware writes a register or has spent `budget_ps` (then it reaches the horizon
         and hands over), so until then the registers among `addresses` whose reading changes nothing keep the values
         given here. With whether each was read since the last change, and the polling loop's sites at this change,
-        the firmware can apply `_read_again`'s rule itself and ask only for a read that would park.
+        the firmware can apply `_read_again`'s rule itself and ask only for a read that would park. The same
+        `addresses` (one tuple) asked again reuse what was looked up for them.
         """
         process = self.process
         assert process is not None
+        if addresses is not self._offered:
+            self._offered = addresses
+            devices = self._devices
+            offered = [a for a in addresses if a not in self.time_varying and a not in self.read_side_effects]
+            self._offered_readers = [(a, devices[a].read if a in devices else _reads_zero) for a in offered]
+            self._offered_addresses = tuple(offered)
         budget = process.horizon - process.local_time
-        devices, seen, version = self._devices, self._seen, self.version
-        entries = [(address, devices[address].read(address) if address in devices else 0, seen.get(address) == version)
-                   for address in addresses
-                   if address not in self.time_varying and address not in self.read_side_effects]
+        seen, version = self._seen, self.version
+        readers = self._offered_readers
         current = self._polled_version == version
-        return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, entries,
+        return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, self._offered_addresses,
+                         bytes([read(a) for a, read in readers]),
+                         bytes([seen.get(a) == version for a, _ in readers]),
                          [(a, site) for a, site in self._polled_sites if isinstance(site, int)] if current else [])
 
     def write(self, address: int, value: int) -> None:

@@ -50,17 +50,19 @@ class RemoteMCU(SFRNames):
         self._sites_current = False
 
     def read(self, address: int, site: object = None) -> int:
-        place = hash(firmware_location())
         ahead = self._ahead
         if ahead is not None and address in ahead and self._left_ps >= self.access_ps:
-            if address not in self._seen:
+            if address not in self._seen:       # the first read since the change: where it comes from does not matter
                 self._seen.add(address)
-                return self._served(address, place, ahead[address])
+                return self._served(address, 0, ahead[address])
+            place = hash(firmware_location())
             if not self._sites_current:         # PIC18F8680._read_again: the first read again since a change
                 self._sites, self._sites_current = set(), True
             if (address, place) not in self._sites:
                 self._sites.add((address, place))
                 return self._served(address, place, ahead[address])
+        else:
+            place = hash(firmware_location())
         self._ahead = None                      # a read that would park (or that the read-ahead does not cover)
         self._pending += wire.READ_ITEM.pack(wire.READ, _address(address), place)
         self.flush()

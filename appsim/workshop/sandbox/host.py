@@ -45,6 +45,7 @@ class SandboxedFirmware:
         self._error: Exception | None = None
         # The registers the firmware read last, most recent last: those a read-ahead offers (a polling loop's).
         self._reads: dict[int, None] = {}
+        self._offer: tuple[int, ...] | None = None
 
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
@@ -188,16 +189,23 @@ class SandboxedFirmware:
 
     def _recent(self, address: int) -> None:
         reads = self._reads
-        reads.pop(address, None)
+        if address in reads:
+            del reads[address]
+        else:
+            self._offer = None
+            if len(reads) == READ_AHEAD_REGISTERS:
+                del reads[next(iter(reads))]
         reads[address] = None
-        if len(reads) > READ_AHEAD_REGISTERS:
-            del reads[next(iter(reads))]
+
+    def _offered(self) -> tuple[int, ...]:
+        """The registers a read-ahead offers: one tuple while they stay the same (see PIC18F8680.read_ahead)."""
+        if self._offer is None:
+            self._offer = tuple(self._reads)
+        return self._offer
 
     def _answer(self, mcu: PIC18F8680, value: int) -> bytes:
         """A read's answer, with what the firmware may read next without asking (see PIC18F8680.read_ahead)."""
-        ahead = mcu.read_ahead(self._reads)
-        return (wire.VALUE + bytes((value & 0xFF,))
-                + wire.read_ahead_message(ahead.budget_ps, ahead.current, ahead.entries, ahead.sites))
+        return wire.VALUE + bytes((value & 0xFF,)) + wire.read_ahead_message(*mcu.read_ahead(self._offered()))
 
     def _replay(self, mcu: PIC18F8680, address: int, site: int, used: int) -> None:
         """A read the child answered from its read-ahead, done on the board as it would have been asked: it must

@@ -4,6 +4,7 @@ The grader trusts nothing it reads here: `decode` turns a child's message into p
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import struct
@@ -26,15 +27,15 @@ HELLO, LOADED, LOAD_FAILED, RETURNED, RAISED, OUT_OF_MEMORY, EXITED, BATCH = (
 WRITE, SPEND, SERVED, READ, DISPLAY = b"W", b"S", b"r", b"R", b"D"
 INITIAL, CURSOR, TEXT = 0, 1, 2
 # Grader to child: SOURCE name-length:u16 name source; GO access_ps:u64 tcy_ps:u64; VALUE value:u8 and a read-ahead
-# (READ_AHEAD: budget_ps:u64 current:u8 entries:u16 sites:u16, then entries x (address:u16 value:u8 seen:u8) and
-# sites x (address:u16 site:i64); see PIC18F8680.read_ahead); DONE (display); ERROR + JSON [class, text].
+# (READ_AHEAD: budget_ps:u64 current:u8 entries:u16 sites:u16, then the entries' addresses (u16 each), their values
+# (u8 each) and whether each was seen (u8 each), then sites x (address:u16 site:i64); see PIC18F8680.read_ahead);
+# DONE (display); ERROR + JSON [class, text].
 SOURCE, GO, VALUE, DONE, ERROR = b"S", b"G", b"V", b"K", b"Z"
 
 WRITE_ITEM = struct.Struct("<cHB")
 SERVED_ITEM = struct.Struct("<cHqB")
 GO_TIMES = struct.Struct("<QQ")
 READ_AHEAD = struct.Struct("<QBHH")
-READ_AHEAD_ENTRY = struct.Struct("<HBB")
 READ_AHEAD_SITE = struct.Struct("<Hq")
 SPEND_ITEM = struct.Struct("<cQ")
 READ_ITEM = struct.Struct("<cHq")
@@ -214,29 +215,28 @@ def source_message(name: str, source: bytes) -> bytes:
     return SOURCE + NAME_LENGTH.pack(len(encoded)) + encoded + source
 
 
-def read_ahead_message(budget_ps: int, current: bool, entries: list[tuple[int, int, bool]],
+def read_ahead_message(budget_ps: int, current: bool, addresses: tuple[int, ...], values: bytes, seen: bytes,
                        sites: list[tuple[int, int]]) -> bytes:
-    return b"".join([READ_AHEAD.pack(budget_ps, current, len(entries), len(sites)),
-                     *(READ_AHEAD_ENTRY.pack(a, v, s) for a, v, s in entries),
-                     *(READ_AHEAD_SITE.pack(a, s) for a, s in sites)])
+    return b"".join([READ_AHEAD.pack(budget_ps, current, len(addresses), len(sites)), _addresses(len(addresses)).pack(
+        *addresses), values, seen, *(READ_AHEAD_SITE.pack(a, s) for a, s in sites)])
 
 
 def decode_read_ahead(data: bytes) -> tuple[int, bool, dict[int, int], set[int], set[tuple[int, int]]]:
     """The child's side: budget, current, {address: value}, the addresses read since the last change, the sites."""
     budget, current, count, site_count = READ_AHEAD.unpack_from(data)
-    values, seen = {}, set()
     position = READ_AHEAD.size
-    for _ in range(count):
-        address, value, was_seen = READ_AHEAD_ENTRY.unpack_from(data, position)
-        position += READ_AHEAD_ENTRY.size
-        values[address] = value
-        if was_seen:
-            seen.add(address)
-    sites = set()
-    for _ in range(site_count):
-        sites.add(READ_AHEAD_SITE.unpack_from(data, position))
-        position += READ_AHEAD_SITE.size
+    addresses = _addresses(count).unpack_from(data, position)
+    position += 2 * count
+    values = dict(zip(addresses, data[position:position + count], strict=True))
+    seen = {a for a, was_seen in zip(addresses, data[position + count:position + 2 * count], strict=True) if was_seen}
+    position += 2 * count
+    sites = set(READ_AHEAD_SITE.iter_unpack(data[position:position + READ_AHEAD_SITE.size * site_count]))
     return budget, bool(current), values, seen, sites
+
+
+@functools.cache
+def _addresses(count: int) -> struct.Struct:
+    return struct.Struct(f"<{count}H")
 
 
 def error_message(error: Exception) -> bytes:
