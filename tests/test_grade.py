@@ -452,15 +452,31 @@ def test_a_firmware_that_sleeps_between_accesses_is_stopped_by_its_time_asleep(t
     assert time.monotonic() - started < 60
 
 
-def test_a_child_left_waiting_past_its_boot_time_costs_the_next_student_nothing(monkeypatch):
-    """Each exercise takes the child that booted meanwhile. One that waited longer than BOOT_S for its turn (the
-    exercise before took that long: a slow firmware, a busy machine) is replaced, never handed over dead: the next
-    student got 'stalled', for nothing their firmware did."""
+def test_a_sandbox_left_waiting_past_its_boot_time_costs_the_next_student_nothing(monkeypatch):
+    """Each submission takes the sandbox that booted while the one before was graded. One that waited longer than
+    BOOT_S for its turn (the submission before took that long: a slow firmware, a busy machine) is replaced, never
+    handed over dead: the next student got 'stalled', for nothing their firmware did."""
     monkeypatch.setattr(children, "BOOT_S", 4.0)
     source = (SOLUTIONS / EXERCISE_FILES["ex1"]).read_bytes()
     with Sandbox(isolation(), Limits()) as sandbox:
-        first = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None)
-        time.sleep(5.0)                 # the next child booted meanwhile and has waited past its boot time since
-        second = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None)
+        first = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="alice", spare=True)
+        time.sleep(5.0)                 # the next sandbox booted meanwhile and has waited past its boot time since
+        second = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="bob")
+        third = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="bob")
     assert first["fault"] is None, first["checks"][0]["message"]
-    assert second == first
+    assert second == first and third == first
+
+
+def test_each_exercise_of_a_submission_runs_in_a_fresh_process_of_its_sandbox():
+    """A submission's exercises share its sandbox, one fresh process each: what one firmware leaves in its own process
+    (a patched library) is gone for the next, as it is in `appsim check`."""
+    patcher = firmware("import appsim.firmware.an738 as an738\nan738.CANSendMessage = None\nwhile True:\n    pass")
+    source = (SOLUTIONS / EXERCISE_FILES["ex1"]).read_bytes()
+    with Sandbox(isolation(), Limits(stall_s=1)) as sandbox:
+        honest = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="carol")
+        zygote = sandbox._zygote
+        broken = grade_exercise(sandbox, "ex1", "ex1.py", patcher.encode(), SEED, None, owner="carol")
+        after = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="carol")
+        assert sandbox._zygote is zygote
+    assert broken["score"] == 0
+    assert after == honest and honest["score"] == honest["max_score"]

@@ -71,7 +71,10 @@ HONEST = {                                      # names spread among the attacke
 COMMON = r'''
 import json as _json, os as _os, signal as _signal, struct as _struct, sys as _sys, time as _time
 
-_FDS = _json.loads(_sys.argv[1])               # the sandbox child's settings: its two pipe ends, among others
+from appsim.chip.sfr import current_mcu as _current_mcu
+
+_FDS = {"read_fd": _current_mcu()._channel.read_fd,     # the sandbox child's two pipe ends, as its firmware library
+        "write_fd": _current_mcu()._channel.write_fd}   # (which it can patch at will) holds them
 
 
 def _syscall(number, *args):
@@ -177,6 +180,28 @@ def _attack():
 KILL_SELF_STOP = attack("_os.kill(_os.getpid(), _signal.SIGSTOP)")
 KILL_SELF = attack("_os.kill(_os.getpid(), _signal.SIGKILL)")
 KILL_OWN_GROUP = attack("_os.killpg(0, _signal.SIGKILL)")     # its group: itself, and its init, which ignores it
+
+# Its own submission's sandbox: the zygote (pid 1 there, which forks the process of each of this submission's
+# exercises) stopped, killed, limited, slowed, read or written by every route. Whatever gets through may cost this
+# submission only; its next exercise runs in a fresh process all the same (in a fresh sandbox if need be).
+HARM_OWN_SANDBOX = attack("_attack()", top=r'''
+def _attack():
+    import resource
+    tries = [lambda: _os.kill(1, _signal.SIGSTOP), lambda: _os.kill(1, _signal.SIGKILL),
+             lambda: _os.kill(1, _signal.SIGTERM), lambda: _os.kill(-1, _signal.SIGSTOP),
+             lambda: [_os.kill(1, _signal.SIGCHLD) for _ in range(1000)],
+             lambda: resource.prlimit(1, resource.RLIMIT_NOFILE, (3, 3)),
+             lambda: resource.prlimit(1, resource.RLIMIT_NPROC, (0, 0)),
+             lambda: resource.prlimit(1, resource.RLIMIT_AS, (1 << 20, 1 << 20)),
+             lambda: _os.setpriority(_os.PRIO_PROCESS, 1, 19), lambda: _os.sched_setaffinity(1, {0}),
+             lambda: open("/proc/1/mem", "r+b").write(b"\\xcc" * 64),
+             lambda: open("/proc/1/environ", "rb").read(), lambda: _os.listdir("/proc/1/fd")]
+    for harm in tries:
+        try:
+            harm()
+        except (OSError, ValueError):
+            pass
+''')
 
 # ---------------------------------------------------------------------- read what it must not
 READ_HELPERS = r'''
@@ -631,10 +656,10 @@ def wire_fault(words: str) -> Expect:
 ATTACKS = {
     "kill_signals": (KILL_SIGNALS, AS_STARTER),
     "kill_pidfd": (KILL_PIDFD, AS_STARTER),
-    # the firmware is its sandbox's pid 1 (its init), which the kernel keeps from its own stops and kills
-    "kill_self_sigstop": (KILL_SELF_STOP, AS_STARTER),
-    "kill_self_sigkill": (KILL_SELF, AS_STARTER),
-    "kill_own_group": (KILL_OWN_GROUP, AS_STARTER),
+    # the firmware stops or ends its own process: its own exercise pays, as on a board
+    "kill_self_sigstop": (KILL_SELF_STOP, fault("stalled", "stopped answering")),
+    "kill_self_sigkill": (KILL_SELF, fault("exited", "the firmware exited")),
+    "kill_own_group": (KILL_OWN_GROUP, fault("exited", "the firmware exited")),
     "read_solutions": (READ_SOLUTIONS, AS_STARTER),
     "read_records": (READ_RECORDS, AS_STARTER),
     "read_environment": (LEAK_ENVIRONMENT, AS_STARTER),
@@ -664,6 +689,9 @@ ATTACKS = {
     "spin_sleep": (SPIN_SLEEP, fault("stalled", "stopped answering")),
     "spin_at_load": (SPIN_AT_LOAD, fault("stalled", "stopped answering")),
 }
+
+# A submission with more than Ex1: the attack above in its Ex1, the solution in its Ex2 (which must earn full marks).
+OWN_SANDBOX = {"harm_own_sandbox": {"ex1": HARM_OWN_SANDBOX, "ex2": solution("ex2")}}
 
 NOT_AS_ROOT = ("isolation.Isolation.command: --uid 65534 inside is the grader's own user outside, so as root it is "
                "root (without capabilities)")
@@ -731,6 +759,21 @@ def processes_of_this_run(mark: str) -> list[tuple[int, str]]:
     return found
 
 
+def firmware_running(mark: str) -> bool:
+    """Whether a run's firmware has started: a process its submission's zygote forked (the zygote is bubblewrap's
+    child, or, with --trusted, the worker's; the child has the zygote's command line)."""
+    zygotes = {pid: command for pid, command in processes_of_this_run(mark)
+               if "appsim.workshop.sandbox.zygote" in command}
+
+    def parent(pid: int) -> int:
+        try:
+            return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            return 0
+
+    return any(parent(pid) in zygotes and "bwrap" not in zygotes[parent(pid)].split()[0] for pid in zygotes)
+
+
 def graded_run(root: Path, *, secret: str | None, mark: str) -> dict:
     """Grade the class under `root` (jobs=2, SEED, LIMITS) with TMPDIR a fresh folder; what was seen after."""
     temporary = root / "tmpdir"
@@ -784,6 +827,8 @@ def attacked(tmp_path_factory, site):
     }
     write_class(root / "class", {name: {"ex1": source.replace("@CTX@", "_CTX = " + repr(context))}
                                  for name, (source, _) in ATTACKS.items()})
+    write_class(root / "class", {name: {exercise: text.replace("@CTX@", "_CTX = " + repr(context))
+                                        for exercise, text in files.items()} for name, files in OWN_SANDBOX.items()})
     before = folder_digest(root / "class")
     secret = secrets.token_hex(16)
     seen = graded_run(root, secret=secret, mark=secrets.token_hex(8))
@@ -855,8 +900,17 @@ def test_nothing_outside_the_sandbox_was_written(attacked):
 
 def test_the_grader_output_is_one_line_per_submission_and_nothing_the_firmware_printed(attacked):
     out = attacked["out"]
-    assert "FLOOD-MARK" not in out and len(out) < 400 * (len(HONEST) + len(ATTACKS) + 2)
-    assert out.count("\n[") == len(HONEST) + len(ATTACKS)
+    assert "FLOOD-MARK" not in out and len(out) < 400 * (len(HONEST) + len(ATTACKS) + len(OWN_SANDBOX) + 2)
+    assert out.count("\n[") == len(HONEST) + len(ATTACKS) + len(OWN_SANDBOX)
+
+
+def test_an_attack_on_its_own_sandbox_costs_nothing_else_not_even_its_own_next_exercise(attacked):
+    """Ex1 harms the zygote of its submission's sandbox by every route it has; Ex2, forked there next, is graded as a
+    classmate's identical Ex2 is."""
+    record = attacked["records"]["harm_own_sandbox"]["exercises"]
+    assert record["ex1"] == ex1(attacked, "ken_starter")
+    assert record["ex2"] == attacked["records"]["zoe_ex1_ex2"]["exercises"]["ex2"]
+    assert record["ex2"]["score"] == record["ex2"]["max_score"]
 
 
 def test_a_firmware_does_not_outlive_a_killed_grader(tmp_path):
@@ -870,7 +924,7 @@ def test_a_firmware_does_not_outlive_a_killed_grader(tmp_path):
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
-        while not any("appsim.workshop.sandbox.child" in command for _, command in processes_of_this_run(mark)):
+        while not firmware_running(mark):
             assert grader.poll() is None and time.monotonic() < deadline, "the firmware never reached its sandbox"
             time.sleep(0.1)
         time.sleep(2)                                           # loaded, and running

@@ -55,9 +55,10 @@ ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest fi
 
 # ====================================================================== one exercise, in a worker
 
-def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | None,
-                   seed: int, problem: dict[str, str] | None) -> Record:
-    """The record of one exercise: its firmware (`source`, handed in as `name`) checked in the sandbox, or a zero."""
+def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | None, seed: int,
+                   problem: dict[str, str] | None, *, owner: object = None, spare: bool = False) -> Record:
+    """The record of one exercise: its firmware (`source`, handed in as `name`) checked in the sandbox of submission
+    `owner`, or a zero; `spare` boots the next submission's sandbox meanwhile."""
     from appsim.workshop.checks import check, not_judged
     from appsim.workshop.sandbox.host import SandboxedFirmware
 
@@ -65,7 +66,7 @@ def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | N
         fault = Fault(**problem) if problem else Fault(
             "missing", f"{EXERCISE_FILES[exercise]} is missing from this submission: nothing to grade for {exercise}")
         return exercise_record(not_judged(exercise, seed, fault.kind, fault.message))
-    firmware = SandboxedFirmware(sandbox, name, source, sandbox.limits)
+    firmware = SandboxedFirmware(sandbox, name, source, sandbox.limits, owner=owner, spare=spare)
     try:
         verdict = check(exercise, firmware, seed=seed)
     except Exception as error:          # the checks themselves failed: still a record, never a lost class
@@ -150,10 +151,12 @@ class _Task:
     submission: Submission
     exercise: str
 
-    def line(self, seed: int) -> str:
+    def line(self, seed: int, others_follow: bool) -> str:
+        """The task for a worker; `others_follow` says whether other submissions' tasks wait after it."""
         name, source = self.submission.files.get(self.exercise, (EXERCISE_FILES[self.exercise], None))
         problem = self.submission.problems.get(self.exercise)
         return json.dumps({"task": self.number, "exercise": self.exercise, "name": name, "seed": seed,
+                           "owner": self.submission.name, "spare": others_follow,
                            "source": None if source is None else base64.b64encode(source).decode(),
                            "problem": None if problem is None else dataclasses.asdict(problem)}) + "\n"
 
@@ -182,10 +185,10 @@ class _Worker:
         self.task: _Task | None = None
         self.deadline = 0.0
 
-    def give(self, task: _Task, seed: int, allowed_s: float) -> None:
+    def give(self, task: _Task, seed: int, allowed_s: float, others_follow: bool) -> None:
         self.task = task
         self.deadline = time.monotonic() + allowed_s
-        self.stdin.write(task.line(seed))
+        self.stdin.write(task.line(seed, others_follow))
         self.stdin.flush()
 
     def why_it_died(self) -> str:
@@ -248,7 +251,8 @@ class _Pool:
 
         def next_task(worker: _Worker) -> None:
             if waiting:
-                worker.give(waiting.popleft(), seed, allowed_s)
+                task = waiting.popleft()
+                worker.give(task, seed, allowed_s, bool(waiting) and waiting[-1].submission is not task.submission)
                 selector.register(worker.stdout, selectors.EVENT_READ, worker)
 
         def finish(task: _Task, result: Record) -> Record | None:

@@ -31,7 +31,8 @@ def main() -> None:
         for line in sys.stdin:
             task: dict[str, Any] = json.loads(line)
             source = None if task["source"] is None else base64.b64decode(task["source"])
-            result = grade_exercise(sandbox, task["exercise"], task["name"], source, task["seed"], task["problem"])
+            result = grade_exercise(sandbox, task["exercise"], task["name"], source, task["seed"], task["problem"],
+                                    owner=task["owner"], spare=task["spare"])
             replies.write(json.dumps({"task": task["task"], "result": result}) + "\n")
             replies.flush()
 

@@ -1,5 +1,5 @@
 """A student's firmware inside the grader's sandbox: it loads the file it is sent, says what it calls itself, and runs
-main() with the board across a socket: each register read is a round trip, writes and cycles wait in a batch.
+main() with the board across two pipes: a register read the read-ahead cannot answer is a round trip, writes wait.
 
 Only the firmware library is here (AN738, the C18 headers, the GLCD library), as a C build links it in; the simulator
 and the checks stay with the grader, so nothing this process does to itself changes anything but its own behaviour.
@@ -11,8 +11,6 @@ import importlib
 import json
 import os
 import resource
-import signal
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -182,17 +180,18 @@ def _limit(settings: dict[str, int]) -> None:
             resource.setrlimit(limit, (min(value, resource.getrlimit(limit)[1]),) * 2)
 
 
-def main(settings: dict[str, Any]) -> None:
-    """The child's life: boot, receive the firmware, load it, say what it calls itself, run main() when told."""
-    channel = Channel(settings["read_fd"], settings["write_fd"], wire.MAX_FROM_GRADER)
-    null = os.open(os.devnull, os.O_RDWR)
-    for standard in (0, 1, 2):          # what the firmware prints is never read
-        os.dup2(null, standard)
-    os.close(null)
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)       # a file too big fails with an error instead
-    signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the grader's
-    importlib.import_module("appsim.firmware")          # what every firmware imports, loaded while the child waits
-    importlib.import_module("appsim.can.slcan")         # (and what Demo1's imports)
+def boot() -> None:
+    """Load what every firmware imports (and what Demo1's imports), once, before any firmware is seen."""
+    importlib.import_module("appsim.firmware")
+    importlib.import_module("appsim.can.slcan")
+
+
+def main(settings: dict[str, Any], read_fd: int, write_fd: int) -> None:
+    """One firmware's life in a fresh process: walled in, it says hello, receives its firmware, loads it, says what
+    it calls itself, and runs main() when told. `settings` holds the limits and the seccomp filter (if any)."""
+    channel = Channel(read_fd, write_fd, wire.MAX_FROM_GRADER)
+    if settings.get("seccomp"):
+        install_filter(bytes.fromhex(settings["seccomp"]))
     if not channel.send(wire.HELLO):
         return
     message = channel.receive()
@@ -231,8 +230,25 @@ def main(settings: dict[str, Any]) -> None:
         mcu.report(wire.RETURNED)
 
 
+def install_filter(program: bytes) -> None:
+    """Refuse this process (and anything it starts) the system calls of `program` (isolation.seccomp_program), for
+    good: PR_SET_NO_NEW_PRIVS, then PR_SET_SECCOMP. OSError if the kernel refuses."""
+    import ctypes
+
+    class SockFprog(ctypes.Structure):
+        _fields_ = [("len", ctypes.c_ushort), ("filter", ctypes.c_void_p)]
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    buffer = ctypes.create_string_buffer(program, len(program))
+    fprog = SockFprog(len(program) // 8, ctypes.addressof(buffer))
+    for call in ((PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0),
+                 (PR_SET_SECCOMP, SECCOMP_MODE_FILTER, ctypes.addressof(fprog), 0, 0)):
+        if libc.prctl(*(ctypes.c_ulong(arg) for arg in call)) != 0:
+            error = ctypes.get_errno()
+            raise OSError(error, f"the kernel refused the sandbox's seccomp filter: {os.strerror(error)}")
+
+
+PR_SET_NO_NEW_PRIVS, PR_SET_SECCOMP, SECCOMP_MODE_FILTER = 38, 22, 2
+
+
 firmware_entry(main)                # it runs the firmware's main(), as a board's process does
-
-
-if __name__ == "__main__":
-    main(json.loads(sys.argv[1]))

@@ -1,17 +1,20 @@
-"""The sandboxed processes of one grading worker: each starts booting at once, is ended by a watchdog when its time is
-up, and the next one is always booting. Light on imports, so a worker's first child boots while the worker loads.
+"""The sandboxed processes of one grading worker: a sandbox per submission (a zygote, booted once), a fresh child
+forked in it for each exercise, ended by a watchdog when its time is up. Light on imports, so a worker's first
+sandbox boots while the worker loads.
 """
 from __future__ import annotations
 
 import json
-import math
 import os
+import select
+import signal
+import socket
 import subprocess
 import sys
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from appsim.errors import SandboxUnavailable
 from appsim.schedstat import read_schedstat, schedstat
@@ -20,7 +23,7 @@ from appsim.workshop.sandbox.isolation import ENVIRONMENT, Isolation, import_pat
 from appsim.workshop.sandbox.protocol import Channel, ProtocolError
 
 BOOT = ("import json, sys; settings = json.loads(sys.argv[1]); sys.path[:0] = settings['path']; "
-        "from appsim.workshop.sandbox.child import main; main(settings)")
+        "from appsim.workshop.sandbox.zygote import main; main(settings)")
 BOOT_S = 30.0                       # a child that has not said hello by then is broken, not slow
 BOOT_ATTEMPTS = 3
 
@@ -52,66 +55,212 @@ class Limits:
 DEFAULT_LIMITS = Limits()
 
 
-# ====================================================================== one sandboxed process
+# ====================================================================== one submission's sandbox
+
+class Zygote:
+    """One submission's sandbox: a sandboxed Python process that booted once (see `zygote`) and forks a fresh child for
+    each of that submission's exercises. The grader's end of its control socket; `expires_at` ends it if it does not
+    boot in time."""
+
+    def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog):
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        self.control = ours
+        self.limits = limits
+        self.isolated = isolation is not None
+        self.cpu_limit_s = int(limits.time_s) + 2   # each child's RLIMIT_CPU (SIGXCPU); SIGKILL a second later
+        settings = {"memory_mb": limits.memory_mb, "file_mb": limits.file_mb, "cpu_s": self.cpu_limit_s,
+                    "seccomp": seccomp_program().hex() if self.isolated else "", "control_fd": theirs.fileno(),
+                    "path": import_path()}
+        argv = [sys.executable, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
+        passed = [theirs.fileno()]
+        if isolation is not None:
+            read, write = os.pipe()
+            os.write(write, seccomp_program(may_fork=True))
+            os.close(write)
+            passed.append(read)
+            argv = isolation.command(argv, read)
+        self.expires_at = time.monotonic() + BOOT_S
+        self.expired = False
+        self._ended: dict[int, tuple[int, float]] = {}     # children it reported ended: pid -> (status, CPU seconds)
+        self._pid: int | None = None
+        try:
+            self.process = subprocess.Popen(argv, pass_fds=passed, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                            stderr=subprocess.PIPE, start_new_session=True, cwd="/",
+                                            env=ENVIRONMENT)
+        except BaseException:
+            ours.close()
+            raise
+        finally:
+            theirs.close()
+            for fd in passed[1:]:
+                os.close(fd)
+        self.watchdog = watchdog
+        watchdog.watch(self)
+
+    def ready(self, deadline: float) -> bool:
+        """Whether it booted and said hello by `deadline` (or its boot time: the watchdog ends it then, which ends
+        this wait); from then on it has no time limit of its own: its children have theirs."""
+        self.expires_at = min(deadline, self.expires_at)
+        hello = self._answer(None) == wire.HELLO
+        self.watchdog.forget(self)
+        return hello and not self.expired
+
+    def fork(self, deadline: float) -> Child | None:
+        """A fresh child for one exercise, None if this sandbox forks no more (it ended, or does not answer)."""
+        from_grader, to_child = os.pipe()
+        from_child, to_grader = os.pipe()
+        try:
+            socket.send_fds(self.control, [wire.FORK], [from_grader, to_grader])
+            reply = self._answer(time.monotonic() + FORK_S)
+        except OSError:
+            reply = None
+        finally:
+            os.close(from_grader)
+            os.close(to_grader)
+        pid = 0
+        if reply is not None and len(reply) == wire.FORKED_MESSAGE.size and reply[:1] == wire.FORKED:
+            _, pid = wire.FORKED_MESSAGE.unpack(reply)
+        if pid <= 0:
+            os.close(from_child)
+            os.close(to_child)
+            return None
+        return Child(self, pid, Channel(from_child, to_child, wire.MAX_FROM_CHILD), deadline)
+
+    def ended(self, pid: int, timeout: float) -> tuple[int, float] | None:
+        """How its child `pid` ended, if it says so within `timeout`: the status (a signal as a negative number) and
+        the CPU seconds the child used."""
+        until = time.monotonic() + timeout
+        while pid not in self._ended:
+            if self._next(until) is None:
+                return None
+        return self._ended.pop(pid)
+
+    def host_pid(self, pid: int) -> int | None:
+        """Its child `pid` (as numbered in the sandbox) as this system numbers it; None if it cannot be told."""
+        if not self.isolated:
+            return pid
+        own = self.own_pid()
+        try:
+            with open(f"/proc/{own}/task/{own}/children") as children:
+                candidates = children.read().split()
+        except (OSError, TypeError):
+            return None
+        for candidate in candidates:
+            try:
+                with open(f"/proc/{candidate}/status") as status:
+                    numbers = next(line for line in status if line.startswith("NSpid:")).split()[1:]
+            except (OSError, StopIteration):
+                continue
+            if numbers and numbers[-1] == str(pid):
+                return int(candidate)
+        return None
+
+    def own_pid(self) -> int | None:
+        """The zygote's process as this system numbers it (inside the sandbox, bubblewrap's one child)."""
+        if self._pid is None:
+            pid = self.process.pid
+            if self.isolated:
+                try:
+                    with open(f"/proc/{pid}/task/{pid}/children") as children:
+                        inner = children.read().split()
+                except OSError:
+                    return None
+                if len(inner) != 1:
+                    return None
+                pid = int(inner[0])
+            self._pid = pid
+        return self._pid
+
+    def _answer(self, until: float | None) -> bytes | None:
+        """Its next message other than ENDED, None once it ended or `until` passed."""
+        while (message := self._next(until)) is not None:
+            if message[:1] != wire.ENDED:
+                return message
+        return None
+
+    def _next(self, until: float | None) -> bytes | None:
+        """Its next message (an ENDED one noted), None once it ended or `until` (time.monotonic()) passed."""
+        if until is not None:
+            left = until - time.monotonic()
+            if left <= 0 or not select.select([self.control], [], [], left)[0]:
+                return None
+        try:
+            message = self.control.recv(wire.MAX_CONTROL)
+        except OSError:
+            return None
+        if len(message) == wire.ENDED_MESSAGE.size and message[:1] == wire.ENDED:
+            _, pid, status, cpu_s = wire.ENDED_MESSAGE.unpack(message)
+            self._ended[pid] = (status, cpu_s)
+            if len(self._ended) > ENDED_KEPT:
+                del self._ended[next(iter(self._ended))]
+        return message or None
+
+    def why_not(self) -> str:
+        """What a zygote that never said hello printed (bubblewrap's or Python's own error), for the grader's log."""
+        self.kill()
+        assert self.process.stderr is not None
+        text = self.process.stderr.read(4000).decode("utf-8", "replace").strip()
+        return text or f"it ended with status {self.process.returncode}"
+
+    def put_off(self) -> None:
+        """Booting, it has no firmware that waits for a CPU."""
+
+    def expire(self) -> None:
+        """The watchdog's doing: it did not boot in time."""
+        self.expired = True
+        self.process.kill()
+
+    def kill(self) -> None:
+        """End the sandbox, and everything in it."""
+        self.watchdog.forget(self)
+        if self.process.poll() is None:
+            self.process.kill()
+        try:
+            self.process.wait(10)
+        except subprocess.TimeoutExpired:
+            pass
+        self.control.close()
+
+
+ENDED_KEPT = 64                     # ends a zygote told that nobody asked about (a bound on what it can make us keep)
+FORK_S = 10.0                       # a zygote that does not answer a fork by then is broken
+
 
 class Child:
-    """One sandboxed Python process, booting or ready for its firmware, and the grader's ends of its two pipes.
+    """One exercise's process, forked by its submission's zygote, and the grader's ends of its two pipes.
 
     `expires_at` (time.monotonic()) is when the watchdog ends it, put off by the time its firmware waits for a CPU (on
     a busy machine), never past `deadline`; `expired` says it did.
     """
 
-    def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog):
-        from_grader, to_child = os.pipe()
-        from_child, to_grader = os.pipe()
-        self.channel = Channel(from_child, to_child, wire.MAX_FROM_CHILD)
-        self.cpu_limit_s = int(limits.time_s) + 2   # RLIMIT_CPU's soft limit (SIGXCPU); SIGKILL a second later
-        settings: dict[str, Any] = {"read_fd": from_grader, "write_fd": to_grader, "path": import_path(),
-                                    "memory_mb": limits.memory_mb, "file_mb": limits.file_mb,
-                                    "cpu_s": self.cpu_limit_s}
-        argv = [sys.executable, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
-        theirs = [from_grader, to_grader]
-        if isolation is not None:
-            read, write = os.pipe()
-            os.write(write, seccomp_program())
-            os.close(write)
-            theirs.append(read)
-            argv = isolation.command(argv, read)
-        self.expires_at = time.monotonic() + BOOT_S
-        self.deadline = math.inf
+    def __init__(self, zygote: Zygote, pid: int, channel: Channel, deadline: float):
+        self.zygote = zygote
+        self.pid = pid
+        self.channel = channel
+        self.cpu_limit_s = zygote.cpu_limit_s
+        self.expires_at = min(deadline, time.monotonic() + BOOT_S)
+        self.deadline = deadline
         self.expired = False
-        self.isolated = isolation is not None
+        self._host_pid = zygote.host_pid(pid)
+        self._pidfd = _pidfd(self._host_pid)
         self._schedstat: int | None = None          # the firmware process's /proc schedstat, once it said hello
         self._waited_s = 0.0
-        try:
-            self.process = subprocess.Popen(argv, pass_fds=theirs, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                            stderr=subprocess.PIPE, start_new_session=True, cwd="/",
-                                            env=ENVIRONMENT)
-        except BaseException:
-            self.channel.close()
-            raise
-        finally:
-            for fd in theirs:
-                os.close(fd)
-        self._watchdog = watchdog
-        watchdog.watch(self)
+        self._watchdog = zygote.watchdog
+        self._watchdog.watch(self)
 
     def ready(self, deadline: float) -> bool:
-        """Whether it booted and said hello by `deadline` (which stays its last resort). From then on only the grader's
-        waits on it set `expires_at`: its boot time no longer counts."""
-        self.deadline = deadline
-        self.expires_at = min(deadline, self.expires_at)
+        """Whether it said hello (it is walled in and waits for its firmware) in time."""
         try:
             hello = self.channel.receive() == wire.HELLO
         except ProtocolError:
             return False
         self.expires_at = deadline
-        if not hello or self.expired:           # its boot time ran out before its turn came (its hello still there)
+        if not hello or self.expired:
             return False
-        if (pid := self.firmware_pid()) is not None:
-            self._schedstat = schedstat(f"/proc/{pid}/schedstat")
+        if self._host_pid is not None:
+            self._schedstat = schedstat(f"/proc/{self._host_pid}/schedstat")
             self._waited_s = self.waited_for_cpu()
-        return hello
+        return True
 
     def waited_for_cpu(self) -> float:
         """Seconds its firmware's process has spent ready to run but waiting for a CPU (0 where that is not known)."""
@@ -126,60 +275,60 @@ class Child:
             self._waited_s = waited
 
     def firmware_pid(self) -> int | None:
-        """The firmware's own process as this system numbers it (inside the sandbox, bubblewrap's one child), None if
-        it cannot be told."""
-        pid = self.process.pid
-        if not self.isolated:
-            return pid
-        try:
-            with open(f"/proc/{pid}/task/{pid}/children") as children:
-                inner = children.read().split()
-        except OSError:
-            return None
-        return int(inner[0]) if len(inner) == 1 else None
+        """The firmware's own process as this system numbers it, None if it cannot be told."""
+        return self._host_pid
 
     def why_not(self) -> str:
-        """What a child that never said hello printed (bubblewrap's or Python's own error), for the grader's log."""
+        """Why a child never said hello, for the grader's log."""
         self.kill()
-        assert self.process.stderr is not None
-        text = self.process.stderr.read(4000).decode("utf-8", "replace").strip()
-        return text or f"it ended with status {self.process.returncode}"
+        ended = self.zygote.ended(self.pid, 1.0)
+        return f"it ended with status {ended[0]}" if ended else "its sandbox ended"
 
     def ended(self, timeout: float) -> tuple[int, float] | None:
         """How it ended, if it does within `timeout`: its status (a signal as a negative number) and the CPU seconds
-        it used (bubblewrap reports a signal as 128 + signal, and counts its child's time as its own)."""
-        deadline = time.monotonic() + timeout
-        while True:
-            try:
-                pid, status, usage = os.wait4(self.process.pid, os.WNOHANG)
-            except ChildProcessError:       # reaped already
-                return (self.process.returncode or 0), 0.0
-            if pid:
-                code = os.waitstatus_to_exitcode(status)
-                self.process.returncode = code
-                return (-(code - 128) if code > 128 else code), usage.ru_utime + usage.ru_stime
-            if time.monotonic() >= deadline:
-                return None
-            time.sleep(0.01)
+        it used, as its zygote saw it (None if the zygote cannot say)."""
+        return self.zygote.ended(self.pid, timeout)
 
     def expire(self) -> None:
         """The watchdog's doing: its time is up."""
         self.expired = True
-        self.process.kill()
+        self._signal()
 
     def kill(self) -> None:
-        """End it (and, through its namespace, anything it left), and free what the grader holds of it."""
+        """End it, and free what the grader holds of it."""
         self._watchdog.forget(self)
         if self._schedstat is not None:
             os.close(self._schedstat)
             self._schedstat = None
-        if self.process.poll() is None:
-            self.process.kill()
-        try:
-            self.process.wait(10)
-        except subprocess.TimeoutExpired:
-            pass
+        self._signal()
+        if self._pidfd is not None:
+            os.close(self._pidfd)
+            self._pidfd = None
         self.channel.close()
+
+    def _signal(self) -> None:
+        if self._pidfd is not None:
+            try:
+                signal.pidfd_send_signal(self._pidfd, signal.SIGKILL)
+            except OSError:
+                pass                    # it has ended already
+        elif self._host_pid is not None and not self.zygote.isolated:
+            try:
+                os.kill(self._host_pid, signal.SIGKILL)
+            except OSError:
+                pass
+        else:                           # it cannot be told apart in its sandbox: the sandbox ends with it
+            self.zygote.kill()
+
+
+def _pidfd(pid: int | None) -> int | None:
+    """A descriptor that names process `pid` for good (no other process that gets its number later), where there are."""
+    if pid is None or not hasattr(os, "pidfd_open"):
+        return None
+    try:
+        return os.pidfd_open(pid)
+    except OSError:
+        return None
 
 
 class Watchdog:
@@ -189,18 +338,18 @@ class Watchdog:
     TICK_S = 0.02
 
     def __init__(self) -> None:
-        self._children: set[Child] = set()
+        self._children: set[Child | Zygote] = set()
         self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
 
-    def watch(self, child: Child) -> None:
+    def watch(self, child: Child | Zygote) -> None:
         with self._lock:
             self._children.add(child)
             if self._thread is None:
                 self._thread = threading.Thread(target=self._run, name="appsim-sandbox-watchdog", daemon=True)
                 self._thread.start()
 
-    def forget(self, child: Child) -> None:
+    def forget(self, child: Child | Zygote) -> None:
         with self._lock:
             self._children.discard(child)
 
@@ -217,44 +366,69 @@ class Watchdog:
 
 
 class Sandbox:
-    """One grading worker's supply of sandboxed children: each exercise gets a fresh one, the next already booting.
+    """One grading worker's sandboxes: one per submission (a zygote), which forks a fresh child for each exercise.
+    While a submission is graded, the next one's sandbox may boot (`take(..., spare=True)`).
 
-    `isolation` None runs children as plain processes (only for a class whose code is trusted: `--trusted`).
+    `isolation` None runs them as plain processes (only for a class whose code is trusted: `--trusted`).
     """
 
     def __init__(self, isolation: Isolation | None, limits: Limits = DEFAULT_LIMITS):
         self.isolation = isolation
         self.limits = limits
         self.watchdog = Watchdog()
-        self._spare: Child | None = None
+        self._spare: Zygote | None = None
+        self._zygote: Zygote | None = None
+        self._owner: object = None
 
-    def take(self, deadline: float) -> Child:
-        """A child that has booted; the next one starts booting meanwhile. SandboxUnavailable if none will boot."""
+    def take(self, deadline: float, owner: object = None, *, spare: bool = False) -> Child:
+        """A fresh child for one exercise of submission `owner`, in that submission's sandbox (booted now, or while the
+        one before was graded); `spare` starts the next submission's sandbox booting. SandboxUnavailable if none will
+        boot."""
         problem = ""
         for _ in range(BOOT_ATTEMPTS):
-            child = self._spare if self._spare is not None and not self._spare.expired else self._child()
-            if child is not self._spare and self._spare is not None:
-                self._spare.kill()          # it waited for its turn past its boot time, and the watchdog ended it
-            self._spare = self._child()
-            if child.ready(deadline):
+            if self._zygote is None or self._owner != owner or self._zygote.process.poll() is not None:
+                problem = self._switch(deadline, owner, spare)
+                if self._zygote is None:
+                    if time.monotonic() >= deadline:
+                        break
+                    continue
+            child = self._zygote.fork(deadline)
+            if child is not None and child.ready(deadline):
                 return child
-            problem = child.why_not()
+            problem = child.why_not() if child is not None else "its sandbox ended"
+            self._zygote.kill()
+            self._zygote = None
             if time.monotonic() >= deadline:
                 break
         raise SandboxUnavailable(f"the grader could not start a sandbox for this firmware: {problem}")
 
-    def warm(self) -> None:
-        """Start the first child booting now (a worker does this before it loads the simulator)."""
-        if self._spare is None:
-            self._spare = self._child()
+    def _switch(self, deadline: float, owner: object, spare: bool) -> str:
+        """Make a booted sandbox submission `owner`'s; what went wrong if none booted."""
+        if self._zygote is not None:
+            self._zygote.kill()
+            self._zygote = None
+        zygote = self._spare if self._spare is not None and not self._spare.expired else self._zygote_()
+        if zygote is not self._spare and self._spare is not None:
+            self._spare.kill()          # it waited for its turn past its boot time, and the watchdog ended it
+        self._spare = self._zygote_() if spare else None
+        if not zygote.ready(deadline):
+            return zygote.why_not()
+        self._zygote, self._owner = zygote, owner
+        return ""
 
-    def _child(self) -> Child:
-        return Child(self.isolation, self.limits, self.watchdog)
+    def warm(self) -> None:
+        """Start the first sandbox booting now (a worker does this before it loads the simulator)."""
+        if self._spare is None:
+            self._spare = self._zygote_()
+
+    def _zygote_(self) -> Zygote:
+        return Zygote(self.isolation, self.limits, self.watchdog)
 
     def close(self) -> None:
-        if self._spare is not None:
-            self._spare.kill()
-            self._spare = None
+        for zygote in (self._spare, self._zygote):
+            if zygote is not None:
+                zygote.kill()
+        self._spare = self._zygote = None
 
     def __enter__(self) -> Sandbox:
         return self

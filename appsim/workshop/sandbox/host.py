@@ -29,11 +29,15 @@ READ_AHEAD_REGISTERS = 16         # a read-ahead offers the registers read last,
 # ====================================================================== a firmware file, run in a child
 
 class SandboxedFirmware:
-    """A firmware file's source, for `check()`: `load()` starts a sandboxed child that loads it, and the board runs
-    its main() there. The first fault ends the run; `fault` keeps it. Call `close()` when the check is done."""
+    """A firmware file's source, for `check()`: `load()` forks a child in its submission's sandbox that loads it, and
+    the board runs its main() there. The first fault ends the run; `fault` keeps it. Call `close()` when the check is
+    done."""
 
-    def __init__(self, sandbox: Sandbox, name: str, source: bytes, limits: Limits = DEFAULT_LIMITS):
+    def __init__(self, sandbox: Sandbox, name: str, source: bytes, limits: Limits = DEFAULT_LIMITS, *,
+                 owner: object = None, spare: bool = False):
         self.sandbox = sandbox
+        self.owner = owner              # the submission it belongs to: its exercises share a sandbox
+        self.spare = spare              # whether to boot the next submission's sandbox meanwhile
         self.name = name
         self.source = source
         self.limits = limits
@@ -50,7 +54,7 @@ class SandboxedFirmware:
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
         try:
-            child = self._child = self.sandbox.take(self.deadline)
+            child = self._child = self.sandbox.take(self.deadline, self.owner, spare=self.spare)
         except SandboxUnavailable as error:
             raise Fatal(self._ends(Fault("grader", str(error)))) from None
         child.channel.send(wire.source_message(self.name, self.source))

@@ -32,6 +32,14 @@ INITIAL, CURSOR, TEXT = 0, 1, 2
 # DONE (display); ERROR + JSON [class, text].
 SOURCE, GO, VALUE, DONE, ERROR = b"S", b"G", b"V", b"K", b"Z"
 
+# A sandbox's zygote and the grader, on its control socket (one message a packet): FORK with the child's two pipe ends
+# (SCM_RIGHTS), answered FORKED pid:i32 (as the sandbox numbers it); ENDED pid:i32 status:i32 cpu_s:f64 when a child
+# ended (a signal as a negative status). HELLO once booted.
+FORK, FORKED, ENDED = b"F", b"K", b"E"
+FORKED_MESSAGE = struct.Struct("<ci")
+ENDED_MESSAGE = struct.Struct("<ciid")
+MAX_CONTROL = 32
+
 WRITE_ITEM = struct.Struct("<cHB")
 SERVED_ITEM = struct.Struct("<cHqB")
 GO_TIMES = struct.Struct("<QQ")
