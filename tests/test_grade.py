@@ -18,8 +18,9 @@ import pytest
 from appsim.errors import GradeError
 from appsim.workshop.checks import check
 from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS, STARTERS
-from appsim.workshop.grading.grade import grade_exercise, run
+from appsim.workshop.grading.grade import run
 from appsim.workshop.grading.submissions import find_submissions
+from appsim.workshop.grading.worker import grade_exercise
 from appsim.workshop.sandbox import children
 from appsim.workshop.sandbox.children import Limits, Sandbox
 from appsim.workshop.sandbox.isolation import isolation

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from appsim.errors import FirmwareHung
-from appsim.firmware.loader import crash_message
 
 if TYPE_CHECKING:
     from appsim.sim import Process
@@ -60,6 +59,8 @@ def fault_of(failure: BaseException, filename: str | None) -> Fault:
     if isinstance(failure, MemoryError):
         return Fault("memory", "the firmware ran out of memory (MemoryError): a list or string that grows "
                                "without end in the main loop?")
+    # the firmware loader, only where a firmware ran (not in the grader's coordinator, which starts its workers first)
+    from appsim.firmware.loader import crash_message
     return Fault("exception", crash_message(failure, filename))
 
 

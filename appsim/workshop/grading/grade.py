@@ -20,12 +20,11 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any, TextIO
+from typing import IO, TextIO
 
 import appsim
 from appsim.errors import GradeError, SandboxUnavailable
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
-from appsim.workshop.faults import Fault
 from appsim.workshop.grading.results import (
     Record,
     ResultsFile,
@@ -40,46 +39,19 @@ from appsim.workshop.grading.results import (
     write_gradescope,
 )
 from appsim.workshop.grading.submissions import Submission, find_submissions
-from appsim.workshop.sandbox.children import BOOT_S, DEFAULT_LIMITS, Limits, Sandbox
-from appsim.workshop.sandbox.isolation import Isolation, isolation
+from appsim.workshop.grading.worker import exercise_record
+from appsim.workshop.sandbox.children import BOOT_S, DEFAULT_LIMITS, Limits
+from appsim.workshop.sandbox.isolation import Isolation, import_path, isolation
 
 # A worker imports the grader's own appsim (wherever it came from: an installation, or the checkout the grader runs
-# in), by its location and nothing else of that folder, so a worker and its sandboxes never run another copy.
-WORKER = ("import sys, importlib.util; del sys.path[0]; kit = sys.argv[1]; "
+# in), by its location and nothing else of that folder, so a worker and its sandboxes never run another copy. It starts
+# without `site` (-S: the grader's import path is given instead), which spares each worker the .pth files' imports.
+WORKER = ("import sys, json, importlib.util; del sys.path[0]; kit = sys.argv[1]; sys.path += json.loads(sys.argv[2]); "
           "spec = importlib.util.spec_from_file_location('appsim', kit + '/__init__.py', "
           "submodule_search_locations=[kit]); sys.modules['appsim'] = appsim = importlib.util.module_from_spec(spec); "
           "spec.loader.exec_module(appsim); from appsim.workshop.grading.worker import main; main()")
 SLACK_S = 30.0                      # a worker may take this much longer than an exercise's own limits, then it is ended
 ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest first, so the workers finish together
-
-
-# ====================================================================== one exercise, in a worker
-
-def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | None, seed: int,
-                   problem: dict[str, str] | None, *, owner: object = None, spare: bool = False) -> Record:
-    """The record of one exercise: its firmware (`source`, handed in as `name`) checked in the sandbox of submission
-    `owner`, or a zero; `spare` boots the next submission's sandbox meanwhile."""
-    from appsim.workshop.checks import check, not_judged
-    from appsim.workshop.sandbox.host import SandboxedFirmware
-
-    if source is None:
-        fault = Fault(**problem) if problem else Fault(
-            "missing", f"{EXERCISE_FILES[exercise]} is missing from this submission: nothing to grade for {exercise}")
-        return exercise_record(not_judged(exercise, seed, fault.kind, fault.message))
-    firmware = SandboxedFirmware(sandbox, name, source, sandbox.limits, owner=owner, spare=spare)
-    try:
-        verdict = check(exercise, firmware, seed=seed)
-    except Exception as error:          # the checks themselves failed: still a record, never a lost class
-        verdict = not_judged(exercise, seed, "grader", f"the checks could not judge this firmware: "
-                                                       f"{type(error).__name__}: {error}")
-    finally:
-        firmware.close()
-    return exercise_record(verdict)
-
-
-def exercise_record(verdict: Any) -> Record:
-    data = verdict.to_dict()
-    return {"score": data["score"], "max_score": data["max_score"], "fault": data["fault"], "checks": data["checks"]}
 
 
 # ====================================================================== the command
@@ -171,8 +143,9 @@ class _Worker:
     def __init__(self, settings: str, processor: int | None):
         self.log: IO[bytes] = tempfile.TemporaryFile()
         kit = os.path.dirname(os.path.abspath(appsim.__file__))
-        self.process = subprocess.Popen([sys.executable, "-c", WORKER, kit], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, stderr=self.log, text=True, encoding="utf-8")
+        self.process = subprocess.Popen([sys.executable, "-S", "-c", WORKER, kit, json.dumps(import_path()[1:])],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log, text=True,
+                                        encoding="utf-8")
         if processor is not None:
             try:
                 os.sched_setaffinity(self.process.pid, {processor})

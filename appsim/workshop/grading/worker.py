@@ -1,19 +1,25 @@
 """A grading process: exercises to grade arrive as JSON lines on stdin, each verdict leaves as a line on stdout.
 
-Its first sandboxed child starts booting before it loads the simulator; each exercise's firmware then runs in a fresh
-child (see appsim.workshop.sandbox) while the board and the checks run here.
+Its first sandbox boots while it loads the simulator; each exercise's firmware then runs in a fresh process of its
+submission's sandbox (see appsim.workshop.sandbox) while the board and the checks run here.
 """
 from __future__ import annotations
 
 import base64
+import importlib
 import json
 import os
 import signal
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from appsim.workshop.course import EXERCISE_FILES
+from appsim.workshop.faults import Fault
 from appsim.workshop.sandbox.children import Limits, Sandbox
 from appsim.workshop.sandbox.isolation import Isolation
+
+if TYPE_CHECKING:
+    from appsim.workshop.grading.results import Record
 
 
 def main() -> None:
@@ -26,7 +32,8 @@ def main() -> None:
     isolation = None if settings["isolation"] is None else Isolation(**settings["isolation"])
     with Sandbox(isolation, Limits(**settings["limits"])) as sandbox:
         sandbox.warm()
-        from appsim.workshop.grading.grade import grade_exercise  # the simulator loads while the child boots
+        for module in ("appsim.workshop.checks", "appsim.workshop.sandbox.host"):    # while the sandbox boots
+            importlib.import_module(module)
 
         for line in sys.stdin:
             task: dict[str, Any] = json.loads(line)
@@ -35,6 +42,33 @@ def main() -> None:
                                     owner=task["owner"], spare=task["spare"])
             replies.write(json.dumps({"task": task["task"], "result": result}) + "\n")
             replies.flush()
+
+
+def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | None, seed: int,
+                   problem: dict[str, str] | None, *, owner: object = None, spare: bool = False) -> Record:
+    """The record of one exercise: its firmware (`source`, handed in as `name`) checked in the sandbox of submission
+    `owner`, or a zero; `spare` boots the next submission's sandbox meanwhile."""
+    from appsim.workshop.checks import check, not_judged
+    from appsim.workshop.sandbox.host import SandboxedFirmware
+
+    if source is None:
+        fault = Fault(**problem) if problem else Fault(
+            "missing", f"{EXERCISE_FILES[exercise]} is missing from this submission: nothing to grade for {exercise}")
+        return exercise_record(not_judged(exercise, seed, fault.kind, fault.message))
+    firmware = SandboxedFirmware(sandbox, name, source, sandbox.limits, owner=owner, spare=spare)
+    try:
+        verdict = check(exercise, firmware, seed=seed)
+    except Exception as error:          # the checks themselves failed: still a record, never a lost class
+        verdict = not_judged(exercise, seed, "grader", f"the checks could not judge this firmware: "
+                                                       f"{type(error).__name__}: {error}")
+    finally:
+        firmware.close()
+    return exercise_record(verdict)
+
+
+def exercise_record(verdict: Any) -> Record:
+    data = verdict.to_dict()
+    return {"score": data["score"], "max_score": data["max_score"], "fault": data["fault"], "checks": data["checks"]}
 
 
 def _die_with_the_grader() -> None:
