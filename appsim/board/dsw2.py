@@ -26,22 +26,26 @@ class DSW2:
 
     def __init__(self, mcu: PIC18F8680, on: Iterable[int] = (5, 6)):
         self.mcu = mcu
-        self._on: set[int] = set()
+        self._on: frozenset[int] = frozenset()
+        self._route: str | None = None      # where the USART goes with `_on` (looked at for every byte sent)
         self.set(on)
 
     def on(self, *positions: int) -> None:
         """Switch `positions` ON."""
-        self._on |= set(_checked(positions))
-        self.mcu.changed()
+        self._switched(self._on | frozenset(_checked(positions)))
 
     def off(self, *positions: int) -> None:
         """Switch `positions` OFF."""
-        self._on -= set(_checked(positions))
-        self.mcu.changed()
+        self._switched(self._on - frozenset(_checked(positions)))
 
     def set(self, on: Iterable[int]) -> None:
         """Switch exactly the positions in `on` ON and the others OFF."""
-        self._on = set(_checked(tuple(on)))
+        self._switched(frozenset(_checked(tuple(on))))
+
+    def _switched(self, on: frozenset[int]) -> None:
+        self._on = on
+        self._route = next((route for route, pair in _PAIRS.items()
+                            if set(pair) <= on and not set(_PAIRS[CON9 if route == USB else USB]) & on), None)
         self.mcu.changed()
 
     def is_on(self, position: int) -> bool:
@@ -54,11 +58,7 @@ class DSW2:
     @property
     def route(self) -> str | None:
         """Where the USART goes: "usb", "con9", or None (nowhere)."""
-        for route, pair in _PAIRS.items():
-            other = _PAIRS[CON9 if route == USB else USB]
-            if set(pair) <= self._on and not set(other) & self._on:
-                return route
-        return None
+        return self._route
 
     @property
     def routing(self) -> str:

@@ -143,6 +143,7 @@ class USART:
         self._rcsta = 0
         self._baudcon = 0
         self._spbrg = self._spbrgh = 0
+        self._baud_rate_set()
         self._txreg: int | None = None          # a byte waiting in TXREG
         self._sending: Timer | None = None      # the TSR's byte, until its stop bit ends
         self._fifo: deque[Received] = deque()
@@ -154,11 +155,14 @@ class USART:
 
     # -------------------------------------------------------------- timing
     def bit_ps(self) -> int:
-        """One bit at the baud rate SPBRG/SPBRGH, BRGH and BRG16 give."""
+        """One bit at the baud rate SPBRG/SPBRGH, BRGH and BRG16 give (worked out when one of them is written)."""
+        return self._bit_ps
+
+    def _baud_rate_set(self) -> None:
         brg16, brgh = bool(self._baudcon & _BRG16), bool(self._txsta & _BRGH)
         divisor = 4 if brg16 and brgh else 16 if brg16 or brgh else 64
         n = (self._spbrgh << 8 | self._spbrg) if brg16 else self._spbrg
-        return divisor * (n + 1) * PS_PER_SECOND // self.mcu.fosc
+        self._bit_ps = divisor * (n + 1) * PS_PER_SECOND // self.mcu.fosc
 
     @property
     def baud(self) -> float:
@@ -211,6 +215,8 @@ class USART:
             self._spbrg = value
         elif address == _SPBRGH:
             self._spbrgh = value
+        if address in (_TXSTA, _BAUDCON, _SPBRG, _SPBRGH):
+            self._baud_rate_set()
         self._load_shift_register()
 
     # -------------------------------------------------------------- transmit
