@@ -41,7 +41,7 @@ from appsim.workshop.grading.results import (
 from appsim.workshop.grading.submissions import Submission, find_submissions
 from appsim.workshop.grading.worker import exercise_record
 from appsim.workshop.sandbox.children import BOOT_S, DEFAULT_LIMITS, Limits
-from appsim.workshop.sandbox.isolation import Isolation, import_path, isolation
+from appsim.workshop.sandbox.isolation import Isolation, isolation
 
 # A worker imports the grader's own appsim (wherever it came from: an installation, or the checkout the grader runs
 # in), by its location and nothing else of that folder, so a worker and its sandboxes never run another copy. It starts
@@ -143,7 +143,8 @@ class _Worker:
     def __init__(self, settings: str, processor: int | None):
         self.log: IO[bytes] = tempfile.TemporaryFile()
         kit = os.path.dirname(os.path.abspath(appsim.__file__))
-        self.process = subprocess.Popen([sys.executable, "-S", "-c", WORKER, kit, json.dumps(import_path()[1:])],
+        path = [entry for entry in sys.path[1:] if entry and os.path.isdir(entry)]     # site's, for a worker without it
+        self.process = subprocess.Popen([sys.executable, "-S", "-c", WORKER, kit, json.dumps(path)],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log, text=True,
                                         encoding="utf-8")
         if processor is not None:
