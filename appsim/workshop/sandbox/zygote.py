@@ -14,6 +14,7 @@ import socket
 import sys
 from typing import Any
 
+from appsim.workshop.sandbox import child
 from appsim.workshop.sandbox.protocol import ENDED, ENDED_MESSAGE, FORK, FORKED, FORKED_MESSAGE, HELLO, MAX_CONTROL
 
 
@@ -27,8 +28,6 @@ def main(settings: dict[str, Any]) -> None:
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)       # a file too big fails with an error instead
     signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the grader's
     _not_dumpable()
-    from appsim.workshop.sandbox import child
-
     child.boot()
     ended_r, ended_w = os.pipe()
     os.set_blocking(ended_w, False)
@@ -56,18 +55,16 @@ def main(settings: dict[str, Any]) -> None:
 
 def _fork(settings: dict[str, Any], fds: list[int], keep: set[int]) -> int:
     """A child for one firmware (its pid), 0 if none can be started."""
-    from appsim.workshop.sandbox import child
-
     try:
         pid = os.fork()
     except OSError:
         return 0
     if pid == 0:
-        _child(settings, fds, keep, run=child.main)
+        _child(settings, fds, keep)
     return pid
 
 
-def _child(settings: dict[str, Any], fds: list[int], keep: set[int], run: Any) -> None:
+def _child(settings: dict[str, Any], fds: list[int], keep: set[int]) -> None:
     """In the forked child: nothing of the zygote's but the two pipes, then the firmware's life."""
     status = 1
     try:
@@ -75,7 +72,7 @@ def _child(settings: dict[str, Any], fds: list[int], keep: set[int], run: Any) -
         signal.signal(signal.SIGCHLD, signal.SIG_DFL)
         for fd in keep:
             os.close(fd)
-        run(settings, fds[0], fds[1])
+        child.main(settings, fds[0], fds[1])
         status = 0
     finally:
         os._exit(status)
