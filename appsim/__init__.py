@@ -3,3 +3,5 @@
 Layers, each importing only those below it (an import-linter contract in pyproject.toml): cli > session > workshop >
 board > firmware > chip > bus > can > sim, errors, watchdog, schedstat.
 """
+
+__version__ = "0.1.0"            # the one home of the kit's version (pyproject.toml reads it)

@@ -13,16 +13,14 @@ import os
 import random
 import selectors
 import signal
-import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, TextIO
+from typing import IO, Any, TextIO
 
-import appsim
 from appsim.errors import GradeError, SandboxUnavailable
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
 from appsim.workshop.grading.results import (
@@ -39,17 +37,10 @@ from appsim.workshop.grading.results import (
     write_gradescope,
 )
 from appsim.workshop.grading.submissions import Submission, find_submissions
-from appsim.workshop.grading.worker import exercise_record
+from appsim.workshop.grading.worker import exercise_record, start_worker
 from appsim.workshop.sandbox.children import BOOT_S, DEFAULT_LIMITS, Limits
 from appsim.workshop.sandbox.isolation import Isolation, isolation
 
-# A worker imports the grader's own appsim (wherever it came from: an installation, or the checkout the grader runs
-# in), by its location and nothing else of that folder, so a worker and its sandboxes never run another copy. It starts
-# without `site` (-S: the grader's import path is given instead), which spares each worker the .pth files' imports.
-WORKER = ("import sys, json, importlib.util; del sys.path[0]; kit = sys.argv[1]; sys.path += json.loads(sys.argv[2]); "
-          "spec = importlib.util.spec_from_file_location('appsim', kit + '/__init__.py', "
-          "submodule_search_locations=[kit]); sys.modules['appsim'] = appsim = importlib.util.module_from_spec(spec); "
-          "spec.loader.exec_module(appsim); from appsim.workshop.grading.worker import main; main()")
 SLACK_S = 30.0                      # a worker may take this much longer than an exercise's own limits, then it is ended
 ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest first, so the workers finish together
 
@@ -140,22 +131,10 @@ class _Worker:
     processor from one to the other and back, which is cheaper on one processor than across two.
     """
 
-    def __init__(self, settings: str, processor: int | None):
+    def __init__(self, settings: dict[str, Any], processor: int | None):
         self.log: IO[bytes] = tempfile.TemporaryFile()
-        kit = os.path.dirname(os.path.abspath(appsim.__file__))
-        path = [entry for entry in sys.path[1:] if entry and os.path.isdir(entry)]     # site's, for a worker without it
-        self.process = subprocess.Popen([sys.executable, "-S", "-c", WORKER, kit, json.dumps(path)],
-                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.log, text=True,
-                                        encoding="utf-8")
-        if processor is not None:
-            try:
-                os.sched_setaffinity(self.process.pid, {processor})
-            except OSError:
-                pass
-        assert self.process.stdin is not None and self.process.stdout is not None
-        self.stdin, self.stdout = self.process.stdin, self.process.stdout
-        self.stdin.write(settings)
-        self.stdin.flush()
+        self.pid, self.stdin, self.stdout = start_worker(settings, self.log.fileno(), processor)
+        self.status: int | None = None
         self.task: _Task | None = None
         self.deadline = 0.0
 
@@ -169,13 +148,16 @@ class _Worker:
         self.end()
         self.log.seek(0)
         lines = self.log.read().decode("utf-8", "replace").strip().splitlines()
-        return lines[-1] if lines else f"it ended with status {self.process.returncode}"
+        return lines[-1] if lines else f"it ended with status {self.status}"
 
     def end(self) -> None:
-        if self.process.poll() is None:
-            self.process.kill()
-        self.process.wait()
-        for stream in (self.stdin, self.stdout):
+        if self.status is None:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            self.status = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+        for stream in (self.stdin, self.stdout, self.log):
             try:
                 stream.close()
             except OSError:
@@ -201,8 +183,8 @@ class _Pool:
 
     def __init__(self, limits: Limits, walls: Isolation | None, jobs: int | None):
         self.limits = limits
-        self.settings = json.dumps({"isolation": None if walls is None else dataclasses.asdict(walls),
-                                    "limits": dataclasses.asdict(limits)}) + "\n"
+        self.settings = {"isolation": None if walls is None else dataclasses.asdict(walls),
+                         "limits": dataclasses.asdict(limits)}
         self.processors = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
         self.count = max(1, jobs or len(self.processors) or os.cpu_count() or 1)
         self.workers = [self._worker(k) for k in range(self.count)]

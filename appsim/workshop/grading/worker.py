@@ -1,4 +1,5 @@
-"""A grading process: exercises to grade arrive as JSON lines on stdin, each verdict leaves as a line on stdout.
+"""A grading process, forked from the grader: exercises to grade arrive as JSON lines on one pipe, each verdict leaves
+as a line on another.
 
 Its first sandbox boots while it loads the simulator; each exercise's firmware then runs in a fresh process of its
 submission's sandbox (see appsim.workshop.sandbox) while the board and the checks run here.
@@ -11,7 +12,8 @@ import json
 import os
 import signal
 import sys
-from typing import TYPE_CHECKING, Any
+import traceback
+from typing import IO, TYPE_CHECKING, Any, NamedTuple
 
 from appsim.workshop.course import EXERCISE_FILES
 from appsim.workshop.faults import Fault
@@ -22,26 +24,70 @@ if TYPE_CHECKING:
     from appsim.workshop.grading.results import Record
 
 
-def main() -> None:
-    """Settings on the first line (isolation, limits), then one task per line until stdin ends."""
-    _die_with_the_grader()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the coordinator's to handle
-    replies = os.fdopen(os.dup(1), "w", encoding="utf-8")
-    os.dup2(2, 1)                                       # nothing printed in here can break a reply
-    settings = json.loads(sys.stdin.readline())
+class Started(NamedTuple):
+    """A worker as its grader holds it: its process, the pipe its tasks go down, the pipe its verdicts come up."""
+
+    pid: int
+    tasks: IO[str]
+    verdicts: IO[str]
+
+
+def start_worker(settings: dict[str, Any], log: int, processor: int | None) -> Started:
+    """Fork a worker (on `processor`, if given) that grades with `settings` (isolation, limits) and writes what goes
+    wrong to file descriptor `log`. A fork, not a new Python: it starts with the grader's own kit already loaded."""
+    tasks_r, tasks_w = os.pipe()
+    verdicts_r, verdicts_w = os.pipe()
+    grader = os.getpid()
+    pid = os.fork()
+    if pid == 0:
+        _worker(grader, settings, tasks_r, verdicts_w, log, processor)
+    os.close(tasks_r)
+    os.close(verdicts_w)
+    return Started(pid, os.fdopen(tasks_w, "w", encoding="utf-8"), os.fdopen(verdicts_r, "r", encoding="utf-8"))
+
+
+def _worker(grader: int, settings: dict[str, Any], tasks: int, verdicts: int, log: int, processor: int | None) -> None:
+    """The forked worker's life, which never returns into the grader's code: only its pipes and its log kept (a
+    classmate's worker holds no end of them), then `main` until the tasks end."""
+    status = 1
+    try:
+        _die_with(grader)
+        os.dup2(tasks, 0)
+        os.dup2(log, 1)                     # nothing printed in here can break a verdict
+        os.dup2(log, 2)
+        os.dup2(verdicts, 3)
+        os.closerange(4, os.sysconf("SC_OPEN_MAX") if hasattr(os, "sysconf") else 1 << 16)
+        sys.stdout = sys.stderr = open(2, "w", encoding="utf-8", errors="replace", closefd=False)
+        if processor is not None:
+            try:
+                os.sched_setaffinity(0, {processor})
+            except OSError:
+                pass
+        main(settings, open(0, encoding="utf-8", closefd=False), open(3, "w", encoding="utf-8", closefd=False))
+        status = 0
+    except BaseException:               # the grader records the lost exercise, with this traceback's last line
+        traceback.print_exc()
+        sys.stderr.flush()
+    finally:
+        os._exit(status)
+
+
+def main(settings: dict[str, Any], tasks: IO[str], verdicts: IO[str]) -> None:
+    """Grade each task (one JSON line) of `tasks`, until they end, with one verdict line each on `verdicts`."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the grader's to handle
     isolation = None if settings["isolation"] is None else Isolation(**settings["isolation"])
     with Sandbox(isolation, Limits(**settings["limits"])) as sandbox:
         sandbox.warm()
         for module in ("appsim.workshop.checks", "appsim.workshop.sandbox.host"):    # while the sandbox boots
             importlib.import_module(module)
 
-        for line in sys.stdin:
+        for line in tasks:
             task: dict[str, Any] = json.loads(line)
             source = None if task["source"] is None else base64.b64decode(task["source"])
             result = grade_exercise(sandbox, task["exercise"], task["name"], source, task["seed"], task["problem"],
                                     owner=task["owner"], spare=task["spare"])
-            replies.write(json.dumps({"task": task["task"], "result": result}) + "\n")
-            replies.flush()
+            verdicts.write(json.dumps({"task": task["task"], "result": result}) + "\n")
+            verdicts.flush()
 
 
 def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | None, seed: int,
@@ -71,21 +117,17 @@ def exercise_record(verdict: Any) -> Record:
     return {"score": data["score"], "max_score": data["max_score"], "fault": data["fault"], "checks": data["checks"]}
 
 
-def _die_with_the_grader() -> None:
-    """End this worker (and so, through --die-with-parent, its sandboxes) when the grader that started it ends,
-    however it ends: PR_SET_PDEATHSIG on Linux; elsewhere the worker ends when its stdin does."""
+def _die_with(grader: int) -> None:
+    """End this worker (and so, through --die-with-parent, its sandboxes) when the grader that forked it ends, however
+    it ends: PR_SET_PDEATHSIG on Linux; elsewhere the worker ends when its tasks pipe does."""
     if not sys.platform.startswith("linux"):
         return
     import ctypes
 
-    parent = os.getppid()
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    if os.getppid() != parent:              # the grader ended before the call
+    if os.getppid() != grader:              # the grader ended before the call
         os._exit(1)
 
 
 PR_SET_PDEATHSIG = 1
 
-
-if __name__ == "__main__":
-    main()
