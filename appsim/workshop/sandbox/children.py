@@ -206,7 +206,8 @@ class Zygote:
         """Booting, it has no firmware that waits for a CPU."""
 
     def expire(self) -> None:
-        """The watchdog's doing: it did not boot in time."""
+        """The watchdog's doing: it did not boot in time, or a child it forked that cannot be told apart (its number
+        outside unknown) ran out of time."""
         self.expired = True
         self.process.kill()
 
@@ -318,7 +319,7 @@ class Child:
             except OSError:
                 pass
         else:                           # it cannot be told apart in its sandbox: the sandbox ends with it
-            self.zygote.kill()
+            self.zygote.expire()
 
 
 def _pidfd(pid: int | None) -> int | None:
@@ -360,9 +361,10 @@ class Watchdog:
                 for child in self._children:
                     child.put_off()
                 now = time.monotonic()
-                for child in [c for c in self._children if c.expires_at <= now]:
-                    self._children.discard(child)
-                    child.expire()
+                expired = [c for c in self._children if c.expires_at <= now]
+                self._children.difference_update(expired)
+            for child in expired:           # outside the lock: ending one may forget another (its sandbox)
+                child.expire()
 
 
 class Sandbox:
