@@ -58,7 +58,8 @@ def _reads_zero(address: int) -> int:
 class ReadAhead(NamedTuple):
     """See `PIC18F8680.read_ahead`: the time the firmware may spend, whether `sites` (address, call site) are the
     polling loop's at this change, the registers it may read without asking (their addresses; their values, and
-    whether each was read since the last change, both as bytes), and those sites."""
+    whether each was read since the last change, both as bytes), those sites, and what the registers read after a
+    write of one of `written` (its address, and their values then, as bytes), where the board can tell."""
 
     budget_ps: int
     current: bool
@@ -66,6 +67,7 @@ class ReadAhead(NamedTuple):
     values: bytes
     seen: bytes
     sites: list[tuple[int, int]]
+    after_writes: list[tuple[int, bytes]]
 
 
 class PIC18F8680(SFRNames):
@@ -98,6 +100,7 @@ class PIC18F8680(SFRNames):
         self._offered_addresses: tuple[int, ...] = ()
         self._offered_readers: list[tuple[int, Callable[[int], int]]] = []
         self.read_side_effects: set[int] = set()            # reading changes them (RCREG pops its FIFO)
+        self.quiet_writes: dict[int, Callable[[], dict[int, int] | None]] = {}     # see `read_ahead`
         self.process: Process | None = None
         self.glcd: GLCDPort | None = None                   # the board's display, if it has one
         self.interrupts = PeripheralInterrupts(self)
@@ -160,7 +163,7 @@ class PIC18F8680(SFRNames):
         self._parked_on = self._polled if self._polled_pure else None
         process.park()
 
-    def read_ahead(self, addresses: tuple[int, ...]) -> ReadAhead:
+    def read_ahead(self, addresses: tuple[int, ...], written: Iterable[int] = ()) -> ReadAhead:
         """What firmware that runs elsewhere (the grader's sandbox) may read without asking, right now.
 
         Nothing else runs until the firmware writes a register or has spent `budget_ps` (then it reaches the horizon
@@ -168,6 +171,11 @@ class PIC18F8680(SFRNames):
         given here. With whether each was read since the last change, and the polling loop's sites at this change,
         the firmware can apply `_read_again`'s rule itself and ask only for a read that would park. The same
         `addresses` (one tuple) asked again reuse what was looked up for them.
+
+        A write changes the board, but some writes change it in a way known beforehand: a peripheral says so in
+        `quiet_writes` (address -> the new values of the other registers the write changes, None when it would do
+        more, such as start a timer). For those among `written`, the values the registers read after the write
+        come too: it takes the access's time, nothing else runs, and every register reads as not seen since.
         """
         process = self.process
         assert process is not None
@@ -181,10 +189,17 @@ class PIC18F8680(SFRNames):
         seen, version = self._seen, self.version
         readers = self._offered_readers
         current = self._polled_version == version
+        values = [read(a) for a, read in readers]
+        after_writes = []
+        for address in written:
+            changes = self.quiet_writes[address]()
+            if changes is not None:
+                after_writes.append((address, bytes([changes.get(a, value) for a, value in zip(
+                    self._offered_addresses, values, strict=True)])))
         return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, self._offered_addresses,
-                         bytes([read(a) for a, read in readers]),
-                         bytes([seen.get(a) == version for a, _ in readers]),
-                         [(a, site) for a, site in self._polled_sites if isinstance(site, int)] if current else [])
+                         bytes(values), bytes([seen.get(a) == version for a, _ in readers]),
+                         [(a, site) for a, site in self._polled_sites if isinstance(site, int)] if current else [],
+                         after_writes)
 
     def write(self, address: int, value: int) -> None:
         process = self.process

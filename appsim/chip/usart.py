@@ -19,6 +19,7 @@ from appsim.chip.sfr import (
     CREN,
     CSRC,
     FERR,
+    INTERRUPT_REGISTERS,
     OERR,
     RCIDL,
     RCIF,
@@ -47,6 +48,7 @@ _TXSTA, _RCSTA, _TXREG, _RCREG, _SPBRG, _BAUDCON, _SPBRGH = (
 _CSRC, _TX9, _TXEN, _SYNC, _SENDB, _BRGH, _TRMT, _TX9D = CSRC, TX9, TXEN, SYNC, SENDB, BRGH, TRMT, TX9D
 _SPEN, _RX9, _SREN, _CREN, _ADDEN, _FERR, _OERR, _RX9D = SPEN, RX9, SREN, CREN, ADDEN, FERR, OERR, RX9D
 _RCIDL, _SCKP, _BRG16, _WUE, _ABDEN = RCIDL, SCKP, BRG16, WUE, ABDEN
+_PIR1 = INTERRUPT_REGISTERS["PIR1"]
 _TXSTA_WRITABLE = 0xFD                      # all but TRMT
 _RCSTA_WRITABLE = 0xF8                      # SPEN RX9 SREN CREN ADDEN; FERR OERR RX9D are read-only
 _BAUDCON_WRITABLE = _SCKP | _BRG16 | _WUE | _ABDEN
@@ -151,7 +153,9 @@ class USART:
         self._overrun = False
         interrupts.provide(TXIF, lambda: bool(self._txsta & _TXEN) and self._txreg is None)
         interrupts.provide(RCIF, lambda: bool(self._fifo))
+        self._interrupts = interrupts
         mcu.read_side_effects.add(_RCREG)
+        mcu.quiet_writes[_TXREG] = self._fills_txreg
 
     # -------------------------------------------------------------- timing
     def bit_ps(self) -> int:
@@ -220,6 +224,14 @@ class USART:
         self._load_shift_register()
 
     # -------------------------------------------------------------- transmit
+    def _fills_txreg(self) -> dict[int, int] | None:
+        """What a write of TXREG changes, when the TSR is busy shifting a byte out: the byte only waits in TXREG, so
+        PIR1.TXIF reads 0 and nothing else moves (PIC18F8680.quiet_writes). None when the TSR is empty: the byte
+        would start a frame."""
+        if self._sending is None:
+            return None
+        return {_PIR1: self._interrupts.pir1 & ~(1 << TXIF)}
+
     def _abort_transmit(self) -> None:
         if self._sending is not None:
             self._sending.cancel()

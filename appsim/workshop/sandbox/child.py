@@ -30,7 +30,8 @@ class RemoteMCU(SFRNames):
     The batch is built in place behind room for its length, so a read is one write and one read of the pipes. Each
     read's answer brings a read-ahead (see PIC18F8680.read_ahead): until the firmware writes or spends its budget,
     nothing changes on the board, so a register it offers is read here, as PIC18F8680.read would read it, and the
-    grader does that read afterwards, in order (a SERVED item). Only a read that would park a polling loop goes out.
+    grader does that read afterwards, in order (a SERVED item). A write the read-ahead says the outcome of (a byte for
+    a busy USART) goes on from there. Only a read that would park a polling loop goes out.
     """
 
     sfr_addresses = ADDRESSES
@@ -42,6 +43,7 @@ class RemoteMCU(SFRNames):
         self.glcd = RemoteDisplay(self)
         self.access_ps = self.tcy_ps = 0
         self._ahead: dict[int, int] | None = None       # address -> value, while the read-ahead holds
+        self._after: dict[int, dict[int, int]] = {}     # written address -> the read-ahead after that write
         self._left_ps = 0                               # what the firmware may still spend before it runs out
         self._seen: set[int] = set()                    # read since the last change (a read again may be polling)
         self._sites: set[tuple[int, int]] = set()       # (address, site) of the polling loop at this change
@@ -71,7 +73,7 @@ class RemoteMCU(SFRNames):
             if reply[4:5] != wire.VALUE:
                 raise RuntimeError("the grader answered a register read with something else")
         if len(reply) > 6:
-            self._left_ps, current, self._ahead, self._seen, sites = wire.decode_read_ahead(reply[6:])
+            self._left_ps, current, self._ahead, self._seen, sites, self._after = wire.decode_read_ahead(reply[6:])
             self._sites, self._sites_current = sites, current
         return reply[5]
 
@@ -83,8 +85,15 @@ class RemoteMCU(SFRNames):
         return value
 
     def write(self, address: int, value: int) -> None:
-        self._ahead = None                      # the board changes: what was read ahead no longer holds
-        self._pending += wire.WRITE_ITEM.pack(wire.WRITE, _address(address), value & 0xFF)
+        item = wire.WRITE_ITEM.pack(wire.WRITE, _address(address), value & 0xFF)
+        after = self._after.get(address) if self._ahead is not None else None
+        if after is not None and self._left_ps >= self.access_ps:
+            self._left_ps -= self.access_ps     # PIC18F8680.read_ahead: its time, a change, and these values after it
+            after.pop(address, None)
+            self._ahead, self._after, self._seen, self._sites_current = after, {}, set(), False
+        else:
+            self._ahead = None                  # the board changes: what was read ahead no longer holds
+        self._pending += item
         if len(self._pending) > wire.BATCH_BYTES:
             self.flush()
 

@@ -24,6 +24,7 @@ __all__ = ["DEFAULT_LIMITS", "Limits", "Sandbox", "SandboxedFirmware"]
 
 LONG_WAIT_S = 0.05                # a wait for the firmware this long is followed by a look at what it used
 READ_AHEAD_REGISTERS = 16         # a read-ahead offers the registers read last, at most this many (Ex2 reads 10)
+WRITE_AHEAD_REGISTERS = 4         # and what they read after a write of a register written last, for at most this many
 
 
 # ====================================================================== a firmware file, run in a child
@@ -50,6 +51,13 @@ class SandboxedFirmware:
         # The registers the firmware read last, most recent last: those a read-ahead offers (a polling loop's).
         self._reads: dict[int, None] = {}
         self._offer: tuple[int, ...] | None = None
+        # The registers written last whose writes the board can tell the outcome of (PIC18F8680.quiet_writes); what
+        # the last read-ahead said of them, at which board version; and what the child took from it at its write.
+        self._writes: dict[int, None] = {}
+        self._after: dict[int, bytes] = {}
+        self._after_addresses: tuple[int, ...] = ()
+        self._after_version = -1
+        self._took: dict[int, int] | None = None
 
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
@@ -177,6 +185,7 @@ class SandboxedFirmware:
                         value = mcu.read(first, second)
                         self._recent(first)
                     elif op is wire.WRITE:
+                        self._took = self._taken(mcu, first)
                         mcu.write(first, second)
                     elif op is wire.SPEND:
                         mcu.spend_cycles(first)
@@ -192,14 +201,8 @@ class SandboxedFirmware:
         return None
 
     def _recent(self, address: int) -> None:
-        reads = self._reads
-        if address in reads:
-            del reads[address]
-        else:
+        if _remember(self._reads, address, READ_AHEAD_REGISTERS):
             self._offer = None
-            if len(reads) == READ_AHEAD_REGISTERS:
-                del reads[next(iter(reads))]
-        reads[address] = None
 
     def _offered(self) -> tuple[int, ...]:
         """The registers a read-ahead offers: one tuple while they stay the same (see PIC18F8680.read_ahead)."""
@@ -209,7 +212,19 @@ class SandboxedFirmware:
 
     def _answer(self, mcu: PIC18F8680, value: int) -> bytes:
         """A read's answer, with what the firmware may read next without asking (see PIC18F8680.read_ahead)."""
-        return wire.VALUE + bytes((value & 0xFF,)) + wire.read_ahead_message(*mcu.read_ahead(self._offered()))
+        ahead = mcu.read_ahead(self._offered(), self._writes)
+        self._after, self._after_addresses = dict(ahead.after_writes), ahead.addresses
+        self._after_version, self._took = mcu.version, None
+        return wire.VALUE + bytes((value & 0xFF,)) + wire.read_ahead_message(*ahead)
+
+    def _taken(self, mcu: PIC18F8680, address: int) -> dict[int, int] | None:
+        """Before a write of `address`: the values the child may go on with after it, if the last read-ahead told them
+        and the board has not changed since (for `_replay` to tell the grader's mistake from the child's)."""
+        if address in mcu.quiet_writes:
+            _remember(self._writes, address, WRITE_AHEAD_REGISTERS)
+        after = self._after.pop(address, None) if self._after_version == mcu.version else None
+        self._after = {}
+        return None if after is None else dict(zip(self._after_addresses, after, strict=True))
 
     def _replay(self, mcu: PIC18F8680, address: int, site: int, used: int) -> None:
         """A read the child answered from its read-ahead, done on the board as it would have been asked: it must
@@ -221,6 +236,9 @@ class SandboxedFirmware:
         value = mcu.read(address, site)
         self._recent(address)
         if value != used or process.local_time != expected:
+            if self._took is not None and self._took.get(address) == used:
+                raise RuntimeError(f"its read-ahead said register 0x{address:03X} would read {used} after a write, "
+                                   f"where the board reads {value} (a mistake of the simulator's, not the firmware's)")
             raise ProtocolError(f"a read of register 0x{address:03X} it answered itself with {used}, where the "
                                 f"board reads {value}" + ("" if process.local_time == expected else
                                                           ", at a time the board had moved on from"))
@@ -295,6 +313,18 @@ class SandboxedFirmware:
         if self.fault is None:
             self.fault = fault
         return self.fault
+
+
+def _remember(recent: dict[int, None], address: int, most: int) -> bool:
+    """Put `address` last in `recent` (oldest first, at most `most`); whether it is new there."""
+    if address in recent:
+        del recent[address]
+        recent[address] = None
+        return False
+    if len(recent) == most:
+        del recent[next(iter(recent))]
+    recent[address] = None
+    return True
 
 
 def _protocol(error: ProtocolError) -> Fault:

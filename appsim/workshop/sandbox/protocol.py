@@ -27,9 +27,10 @@ HELLO, LOADED, LOAD_FAILED, RETURNED, RAISED, OUT_OF_MEMORY, EXITED, BATCH = (
 WRITE, SPEND, SERVED, READ, DISPLAY = b"W", b"S", b"r", b"R", b"D"
 INITIAL, CURSOR, TEXT = 0, 1, 2
 # Grader to child: SOURCE name-length:u16 name source; GO access_ps:u64 tcy_ps:u64; VALUE value:u8 and a read-ahead
-# (READ_AHEAD: budget_ps:u64 current:u8 entries:u16 sites:u16, then the entries' addresses (u16 each), their values
-# (u8 each) and whether each was seen (u8 each), then sites x (address:u16 site:i64); see PIC18F8680.read_ahead);
-# DONE (display); ERROR + JSON [class, text].
+# (READ_AHEAD: budget_ps:u64 current:u8 entries:u16 sites:u16 writes:u8, then the entries' addresses (u16 each), their
+# values (u8 each) and whether each was seen (u8 each), then sites x (address:u16 site:i64), then writes x (address:u16
+# and the entries' values after a write there, u8 each); see PIC18F8680.read_ahead); DONE (display); ERROR + JSON
+# [class, text].
 SOURCE, GO, VALUE, DONE, ERROR = b"S", b"G", b"V", b"K", b"Z"
 
 # A sandbox's zygote and the grader, on its control socket (one message a packet): FORK with the child's two pipe ends
@@ -43,8 +44,9 @@ MAX_CONTROL = 32
 WRITE_ITEM = struct.Struct("<cHB")
 SERVED_ITEM = struct.Struct("<cHqB")
 GO_TIMES = struct.Struct("<QQ")
-READ_AHEAD = struct.Struct("<QBHH")
+READ_AHEAD = struct.Struct("<QBHHB")
 READ_AHEAD_SITE = struct.Struct("<Hq")
+WRITE_AHEAD = struct.Struct("<H")
 SPEND_ITEM = struct.Struct("<cQ")
 READ_ITEM = struct.Struct("<cHq")
 CURSOR_ITEM = struct.Struct("<cBqq")
@@ -224,14 +226,18 @@ def source_message(name: str, source: bytes) -> bytes:
 
 
 def read_ahead_message(budget_ps: int, current: bool, addresses: tuple[int, ...], values: bytes, seen: bytes,
-                       sites: list[tuple[int, int]]) -> bytes:
-    return b"".join([READ_AHEAD.pack(budget_ps, current, len(addresses), len(sites)), _addresses(len(addresses)).pack(
-        *addresses), values, seen, *(READ_AHEAD_SITE.pack(a, s) for a, s in sites)])
+                       sites: list[tuple[int, int]], after_writes: list[tuple[int, bytes]]) -> bytes:
+    return b"".join([READ_AHEAD.pack(budget_ps, current, len(addresses), len(sites), len(after_writes)),
+                     _addresses(len(addresses)).pack(*addresses), values, seen,
+                     *(READ_AHEAD_SITE.pack(a, s) for a, s in sites),
+                     *(WRITE_AHEAD.pack(a) + after for a, after in after_writes)])
 
 
-def decode_read_ahead(data: bytes) -> tuple[int, bool, dict[int, int], set[int], set[tuple[int, int]]]:
-    """The child's side: budget, current, {address: value}, the addresses read since the last change, the sites."""
-    budget, current, count, site_count = READ_AHEAD.unpack_from(data)
+def decode_read_ahead(data: bytes) -> tuple[int, bool, dict[int, int], set[int], set[tuple[int, int]],
+                                            dict[int, dict[int, int]]]:
+    """The child's side: budget, current, {address: value}, the addresses read since the last change, the sites, and
+    {written address: {address: value}} after a write there."""
+    budget, current, count, site_count, write_count = READ_AHEAD.unpack_from(data)
     position = READ_AHEAD.size
     addresses = _addresses(count).unpack_from(data, position)
     position += 2 * count
@@ -239,7 +245,14 @@ def decode_read_ahead(data: bytes) -> tuple[int, bool, dict[int, int], set[int],
     seen = {a for a, was_seen in zip(addresses, data[position + count:position + 2 * count], strict=True) if was_seen}
     position += 2 * count
     sites = set(READ_AHEAD_SITE.iter_unpack(data[position:position + READ_AHEAD_SITE.size * site_count]))
-    return budget, bool(current), values, seen, sites
+    position += READ_AHEAD_SITE.size * site_count
+    after_writes = {}
+    for _ in range(write_count):
+        (written,) = WRITE_AHEAD.unpack_from(data, position)
+        position += WRITE_AHEAD.size
+        after_writes[written] = dict(zip(addresses, data[position:position + count], strict=True))
+        position += count
+    return budget, bool(current), values, seen, sites, after_writes
 
 
 @functools.cache
