@@ -481,3 +481,27 @@ def test_each_exercise_of_a_submission_runs_in_a_fresh_process_of_its_sandbox():
         assert sandbox._zygote is zygote
     assert broken["score"] == 0
     assert after == honest and honest["score"] == honest["max_score"]
+
+
+def test_a_firmware_that_cannot_be_told_apart_in_its_sandbox_still_ends_when_its_time_is_up(tmp_path):
+    """Where the grader cannot tell the firmware's process apart (no number for it outside its sandbox), it ends the
+    whole sandbox when the firmware's time is up, and the next exercise gets a fresh one. The grader hung there once,
+    its watchdog waiting on itself: a process of its own here, so that a hang fails this test instead of hanging it."""
+    spinner_source = firmware("while True:\n    pass").encode()
+    script = tmp_path / "grade_spinner.py"
+    script.write_text(f"""import json
+from appsim.workshop.grading.worker import grade_exercise
+from appsim.workshop.sandbox import children
+from appsim.workshop.sandbox.isolation import isolation
+
+children.Zygote.host_pid = lambda self, pid: None
+with children.Sandbox(isolation(), children.Limits(stall_s=1)) as sandbox:
+    spinner = grade_exercise(sandbox, "ex1", "ex1.py", {spinner_source!r}, {SEED}, None,
+                             owner="uma")
+    after = grade_exercise(sandbox, "ex1", "ex1.py", {SOLUTION_EX1.encode()!r}, {SEED}, None, owner="uma")
+print(json.dumps([spinner, after]))
+""")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, check=True)
+    spinner, after = json.loads(done.stdout)
+    assert spinner["fault"] == "stalled", spinner
+    assert after["score"] == after["max_score"], after
