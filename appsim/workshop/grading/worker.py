@@ -49,9 +49,14 @@ def start_worker(settings: dict[str, Any], log: int, processor: int | None) -> S
 def _worker(grader: int, settings: dict[str, Any], tasks: int, verdicts: int, log: int, processor: int | None) -> None:
     """The forked worker's life, which never returns into the grader's code: only its pipes and its log kept (a
     classmate's worker holds no end of them), then `main` until the tasks end."""
+    import fcntl  # POSIX: the grader forks its workers on Linux and macOS only
+
     status = 1
     try:
         _die_with(grader)
+        if hasattr(signal, "pthread_sigmask"):
+            signal.pthread_sigmask(signal.SIG_SETMASK, ())      # none held back, whatever the grader was doing
+        tasks, log, verdicts = (fcntl.fcntl(fd, fcntl.F_DUPFD, 4) for fd in (tasks, log, verdicts))   # out of the way
         os.dup2(tasks, 0)
         os.dup2(log, 1)                     # nothing printed in here can break a verdict
         os.dup2(log, 2)
