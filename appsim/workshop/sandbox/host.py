@@ -5,7 +5,6 @@ every message is decoded strictly; whatever the child does, it ends as a `Fault`
 """
 from __future__ import annotations
 
-import os
 import signal
 import time
 
@@ -114,13 +113,12 @@ class SandboxedFirmware:
         return self._serve_loop(mcu, self._usage)
 
     def _serve_loop(self, mcu: PIC18F8680, usage: Usage) -> Fault:
-        """The hot path, a lone register read (most messages), is done inline: one read and one write of the pipes.
+        """The hot path, a lone register read, is done inline: one read and one write of the pipes, and the board.
         What the firmware used is looked at every 64 messages, and after each long wait for one."""
         child = self._child
         assert child is not None
         channel = child.channel
-        read_fd, monotonic = channel.read_fd, time.monotonic
-        stall_s, deadline = self.limits.stall_s, self.deadline
+        monotonic = time.monotonic
         turns, now = 0, monotonic()
         while True:
             turns += 1
@@ -128,29 +126,23 @@ class SandboxedFirmware:
                 fault = self._over(usage)
                 if fault is not None:
                     return fault
-            if not channel.buffered():
-                now = monotonic()
-                child.expires_at = min(deadline, now + stall_s)
-                chunk = os.read(read_fd, 1 << 16)
-                if len(chunk) == wire.LONE_READ_SIZE and chunk.startswith(wire.LONE_READ) and self._error is None:
-                    _, address, site = wire.READ_ITEM.unpack_from(chunk, len(wire.LONE_READ) - 1)
-                    if address in wire.ADDRESSES:
-                        try:
-                            value = mcu.read(address, site)
-                        except Exception as error:       # the firmware sees it raised, as on a local board
-                            self._error = error
-                        else:
-                            self.round_trips += 1
-                            self._recent(address)
-                            try:
-                                channel.send(self._answer(mcu, value))
-                            except OSError:
-                                return self._gone()
-                            continue
-                channel.push(chunk)
-            message = self._receive()
+            now = monotonic()
+            message = self._receive(now)
             if isinstance(message, Fault):
                 return message
+            if len(message) == wire.LONE_READ_SIZE and message.startswith(wire.LONE_READ) and self._error is None:
+                _, address, site = wire.READ_ITEM.unpack_from(message, 1)
+                if address in wire.ADDRESSES:
+                    try:
+                        value = mcu.read(address, site)
+                    except Exception as error:       # the firmware sees it raised, as on a local board
+                        self._error = error
+                    else:
+                        self.round_trips += 1
+                        self._recent(address)
+                        if not channel.send(self._answer(mcu, value)):
+                            return self._gone()
+                        continue
             if message[:1] != wire.BATCH:
                 try:
                     return self._ending(message[:1], message[1:]) or _protocol(
@@ -244,11 +236,12 @@ class SandboxedFirmware:
                                                           ", at a time the board had moved on from"))
 
     # -------------------------------------------------------------- endings
-    def _receive(self) -> bytes | Fault:
-        """The child's next message, or the fault that came instead (time, stall, its end, a broken message)."""
+    def _receive(self, now: float | None = None) -> bytes | Fault:
+        """The child's next message, or the fault that came instead (time, stall, its end, a broken message); `now` is
+        time.monotonic() if the caller has just read it."""
         child = self._child
         assert child is not None
-        child.expires_at = min(self.deadline, time.monotonic() + self.limits.stall_s)
+        child.expires_at = min(self.deadline, (time.monotonic() if now is None else now) + self.limits.stall_s)
         try:
             message = child.channel.receive()
         except ProtocolError as error:

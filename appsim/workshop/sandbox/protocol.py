@@ -50,9 +50,8 @@ WRITE_AHEAD = struct.Struct("<H")
 SPEND_ITEM = struct.Struct("<cQ")
 READ_ITEM = struct.Struct("<cHq")
 CURSOR_ITEM = struct.Struct("<cBqq")
-LONE_READ = LENGTH.pack(1 + 11) + BATCH + READ     # how a batch of one READ starts (READ_ITEM is 11 bytes)
-LONE_READ_SIZE = len(LONE_READ) - 1 + 11
-VALUE_REPLY = LENGTH.pack(2) + VALUE
+LONE_READ = BATCH + READ            # how a batch of one READ begins, the most common message by far
+LONE_READ_SIZE = 1 + READ_ITEM.size
 TEXT_HEAD = struct.Struct("<cBH")
 NAME_LENGTH = struct.Struct("<H")
 ADDRESSES = range(0x1000)           # the PIC18F8680's data memory: 0x000..0xFFF
@@ -108,10 +107,6 @@ class Channel:
                 return chunk[4:]
             buffer += chunk
 
-    def buffered(self) -> bool:
-        """Whether bytes already read wait in the buffer."""
-        return bool(self._buffer)
-
     def push(self, data: bytes) -> None:
         """Bytes already read from the pipe, to be taken before what comes next."""
         self._buffer[:0] = data
@@ -127,7 +122,6 @@ class Channel:
 # ====================================================================== what a child may say
 
 Access = tuple[bytes, int, int, int]     # (op, first, second, third argument), decoded
-_READ_ALONE = 1 + READ_ITEM.size     # the most common message by far: a batch of one READ
 # Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (count; the codes apart).
 DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT = b"Di", b"Dc", b"Dt"
 
@@ -135,7 +129,7 @@ DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT = b"Di", b"Dc", b"Dt"
 def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
     """A BATCH message's items, and the codes of a display TEXT that ends it. Only the last item may wait for an
     answer (a READ or a display item). ProtocolError if anything is off."""
-    if len(message) == _READ_ALONE and message[1:2] == READ:
+    if len(message) == LONE_READ_SIZE and message.startswith(LONE_READ):
         _, address, site = READ_ITEM.unpack_from(message, 1)
         return [(READ, _address(address), site, 0)], b""
     items: list[Access] = []
