@@ -505,3 +505,34 @@ print(json.dumps([spinner, after]))
     spinner, after = json.loads(done.stdout)
     assert spinner["fault"] == "stalled", spinner
     assert after["score"] == after["max_score"], after
+
+
+def test_a_worker_that_dies_costs_its_exercise_a_grader_fault_with_its_last_words_and_the_class_goes_on(
+        tmp_path, monkeypatch, capsys):
+    """A grading worker that dies in the middle of an exercise (a bug of the kit's, a kill from outside) costs that
+    exercise a `grader` fault that quotes the worker's last line and says to grade it again; a fresh worker grades the
+    rest. (Workers are forked from the grader, so this grader's patch is theirs too.)"""
+    from appsim.workshop.grading import worker
+
+    real = worker.grade_exercise
+
+    def dies_on_victors_ex2(sandbox, exercise, name, source, seed, problem, *, owner=None, spare=False):
+        if (owner, exercise) == ("victor", "ex2"):
+            print("RuntimeError: the worker's last words", file=sys.stderr, flush=True)
+            os._exit(3)
+        return real(sandbox, exercise, name, source, seed, problem, owner=owner, spare=spare)
+
+    monkeypatch.setattr(worker, "grade_exercise", dies_on_victors_ex2)
+    for name in ("victor", "wendy"):
+        (tmp_path / "class" / name).mkdir(parents=True)
+        for ex in ("ex1", "ex2"):
+            (tmp_path / "class" / name / EXERCISE_FILES[ex]).write_text(solution(ex))
+    records = {r["submission"]: r for r in run([tmp_path / "class"], results=tmp_path / "grades.jsonl", jobs=2,
+                                                  seed=SEED, limits=LIMITS, out=io.StringIO())}
+    lost = exercise(records, "victor", "ex2")
+    assert lost["fault"] == "grader" and lost["score"] == 0
+    message = lost["checks"][0]["message"]
+    assert "the worker's last words" in message and "Grade it again" in message
+    assert "victor ex2: the grader's worker process ended" in capsys.readouterr().err
+    for name, ex in (("victor", "ex1"), ("wendy", "ex1"), ("wendy", "ex2")):
+        assert exercise(records, name, ex)["score"] == exercise(records, name, ex)["max_score"], (name, ex)

@@ -145,23 +145,28 @@ class _Worker:
         self.stdin.flush()
 
     def why_it_died(self) -> str:
-        self.end()
+        """The last line it wrote to its log (a traceback's), once it has ended; then `end`."""
+        self._reap()
         self.log.seek(0)
         lines = self.log.read().decode("utf-8", "replace").strip().splitlines()
+        self.end()
         return lines[-1] if lines else f"it ended with status {self.status}"
 
     def end(self) -> None:
+        self._reap()
+        for stream in (self.stdin, self.stdout, self.log):
+            try:
+                stream.close()
+            except OSError:
+                pass
+
+    def _reap(self) -> None:
         if self.status is None:
             try:
                 os.kill(self.pid, signal.SIGKILL)
             except ProcessLookupError:
                 pass
             self.status = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
-        for stream in (self.stdin, self.stdout, self.log):
-            try:
-                stream.close()
-            except OSError:
-                pass
 
 
 @contextmanager
