@@ -13,6 +13,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from venvs import make_venv
 
 from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS
 
@@ -39,8 +40,7 @@ def a_class(root: Path) -> Path:
 @pytest.mark.skipif(not private(Path(sys.base_prefix)),
                     reason=f"this Python ({sys.base_prefix}) is not in a private home")
 def test_from_the_folder_holding_the_clone_in_a_venv_over_a_private_python(tmp_path):
-    venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True)
+    venv = make_venv(tmp_path / "venv", pip=False).parent
     holder = tmp_path / "work"
     clone = holder / "appsim"                               # `git clone ... appsim`: a folder named like the package
     clone.mkdir(parents=True)

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from venvs import make_venv
 
 KIT = Path(__file__).resolve().parent.parent
 WHEEL = os.environ.get("APPSIM_TEST_WHEEL")             # .ci/run builds one; without it, the test builds its own
@@ -27,7 +28,7 @@ def _tracked_copy(to: Path) -> Path:
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
-    """The bin folder of a venv that has the kit from a wheel (its dependencies from this Python's)."""
+    """The bin folder of a venv that has the kit from a wheel (its dependencies: this Python's, in a venv or not)."""
     base = tmp_path_factory.mktemp("wheel")
     if WHEEL:
         wheel = Path(WHEEL)
@@ -38,11 +39,10 @@ def installed(tmp_path_factory) -> Path:
         subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(base / "dist"),
                         str(source)], check=True, timeout=600)
         [wheel] = (base / "dist").glob("appsim-*.whl")
-    venv = base / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True)
-    subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "--no-deps", "--force-reinstall",
-                    str(wheel)], check=True, timeout=300)
-    return venv / "bin"
+    bin = make_venv(base / "venv")
+    subprocess.run([str(bin / "python"), "-m", "pip", "install", "-q", "--no-deps", "--force-reinstall", str(wheel)],
+                   check=True, timeout=300)
+    return bin
 
 
 @pytest.fixture
