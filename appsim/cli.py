@@ -5,6 +5,8 @@
 from __future__ import annotations
 
 import argparse
+import io
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -147,8 +149,12 @@ def cmd_bittiming(args: argparse.Namespace) -> int:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    """One exercise, checked as in the notebook: the verdict, and exit status 0 only with full marks."""
-    from appsim.workshop.checks import check
+    """One exercise, checked as in the notebook: the verdict, and exit status 0 only with full marks (2: no firmware
+    file to check, as `board` and `classroom` say)."""
+    from appsim.workshop.checks import check, refusal
+    problem = None if args.firmware is None else refusal(args.exercise, args.firmware)
+    if problem is not None:
+        raise FirmwareError(problem)
     verdict = check(args.exercise, args.firmware, seed=args.seed)
     print(verdict)
     return 0 if verdict.passed else 1
@@ -276,8 +282,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="JSON-lines results, one record per submission (default: CLASS.grades.jsonl beside the "
                             "first PATH)")
     grade.add_argument("--csv", type=Path, help="write the gradebook: a row per submission, a column per exercise")
-    grade.add_argument("--gradescope", type=Path,
-                       help="Gradescope results.json (one submission), else a folder of NAME.json")
+    grade.add_argument("--gradescope", metavar="PATH",
+                       help="Gradescope results.json (one submission), else a folder of NAME.json (always with a "
+                            "PATH that is a folder or ends in /)")
     grade.add_argument("--jobs", type=_jobs, default=None, help="exercises graded at once (default: the cores)")
     grade.add_argument("--seed", type=_seed, help="seed of the random inputs (default: the results file's, else drawn)")
     grade.add_argument("--time-limit", type=_cpu_seconds, default=60.0,
@@ -298,14 +305,53 @@ def build_parser() -> argparse.ArgumentParser:
                     "Exit status 0 with full marks.")
     checking.add_argument("exercise", type=_exercise_name, metavar="EXERCISE",
                           help="ex1 .. ex6 (or 1 .. 6, EX3 ...) or demo1")
-    checking.add_argument("firmware", nargs="?", help="your firmware file (default: exercises/EXERCISE.py)")
+    checking.add_argument("firmware", nargs="?", help="your firmware file, or your notebook (its firmware cell, as "
+                                                      "appsim grade reads it) (default: exercises/EXERCISE.py)")
     checking.add_argument("--seed", type=_seed, help="seed of the random inputs (default: a fresh one, printed)")
     checking.set_defaults(handler=cmd_check)
     return parser
 
 
+class _UntilItsReaderGoes(io.RawIOBase):
+    """A file descriptor of the process's own (1, 2) that becomes /dev/null once its reader has gone (`appsim check
+    ex1 | head -2`): the command ends its work (a class graded, the files written) with its own exit status."""
+
+    def __init__(self, fd: int):
+        super().__init__()
+        self.fd = fd
+
+    def writable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self.fd
+
+    def isatty(self) -> bool:
+        return os.isatty(self.fd)
+
+    def write(self, data: Any) -> int:
+        try:
+            return os.write(self.fd, data)
+        except BrokenPipeError:
+            nowhere = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(nowhere, self.fd)
+            os.close(nowhere)
+            return len(data)
+
+
+def _outliving_their_readers() -> None:
+    """stdout and stderr, where they are the process's own, as `_UntilItsReaderGoes`."""
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is not None and stream is getattr(sys, f"__{name}__"):
+            setattr(sys, name, io.TextIOWrapper(io.BufferedWriter(_UntilItsReaderGoes(stream.fileno())),
+                                                encoding=stream.encoding, errors=stream.errors,
+                                                line_buffering=stream.line_buffering))
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    _outliving_their_readers()
     try:
         return args.handler(args)
     except (FirmwareError, OutputError) as error:
@@ -314,9 +360,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as interrupt:       # one line, which says what was kept where the command knows it
         print(f"appsim {args.command}: {str(interrupt) or 'interrupted (Ctrl-C)'}", file=sys.stderr)
         return INTERRUPTED
-    except BrokenPipeError:          # `appsim demo | head`: the reader has all it wanted
-        sys.stdout = None
-        return 0
 
 
 if __name__ == "__main__":

@@ -170,10 +170,12 @@ def gradescope(record: Record) -> Record:
             "tests": tests}
 
 
-def write_gradescope(path: Path, records: Sequence[Record]) -> None:
-    """One submission: `path` is its results.json. More: `path` is a folder of NAME.json, one per submission."""
-    if len(records) == 1:
-        path.write_text(json.dumps(gradescope(records[0]), indent=1) + "\n", encoding="utf-8")
+def write_gradescope(path: Path, records: Sequence[Record], *, folder: bool) -> None:
+    """`folder`: `path` is a folder of NAME.json, one per submission; else `path` is the one submission's
+    results.json."""
+    if not folder:
+        [record] = records
+        path.write_text(json.dumps(gradescope(record), indent=1) + "\n", encoding="utf-8")
         return
     path.mkdir(parents=True, exist_ok=True)
     for record in records:
