@@ -136,16 +136,32 @@ def cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def cmd_bittiming(args: argparse.Namespace) -> int:
-    from appsim.can.bittiming import calculate, format_table
+    """The settings for a bit rate, the workshop's first where it is one of them; where none gives the rate exactly,
+    those of the nearest rate, and exit status 1."""
+    from appsim.can.bittiming import TOLERATED_RATE_ERROR, calculate, error_percent, format_table, nearest
     from appsim.chip.clock import FOSC_HZ
+    from appsim.workshop.course import CLASSROOM_TIMING
     fosc = args.fosc or FOSC_HZ
+    at = f"at Fosc = {fosc // 10**6} MHz" if fosc % 10**6 == 0 else f"at Fosc = {fosc:,} Hz"
     solutions = calculate(args.bit_rate, fosc)
-    if not solutions:
-        print(f"no valid bit timing gives exactly {args.bit_rate} bit/s at Fosc {fosc} Hz "
-              "(8..25 TQ per bit, BRP 1..64)")
-        return 1
-    print(format_table(solutions[: args.top]))
-    return 0
+    if solutions:
+        title = f"{args.bit_rate:,} bit/s {at}: {len(solutions)} valid settings give it exactly"
+    else:
+        solutions = nearest(args.bit_rate, fosc)
+        rates = " and ".join(sorted({f"{float(s.bit_rate):,.2f} bit/s ({error_percent(s.error)} %)"
+                                     for s in solutions}))
+        many = f"{len(solutions)} settings give it" if len(solutions) > 1 else "1 setting gives it"
+        title = (f"no valid setting gives exactly {args.bit_rate:,} bit/s {at} (8..25 TQ a bit, BRP 1..64); the "
+                 f"nearest rate is {rates}: {many}")
+        if abs(solutions[0].error) > TOLERATED_RATE_ERROR:
+            title += (f"; that is further off than any CAN node tolerates ({float(TOLERATED_RATE_ERROR) * 100:g} % "
+                      f"at best), so it could not talk with nodes at {args.bit_rate:,} bit/s")
+    workshop = [s for s in solutions if s.timing == CLASSROOM_TIMING]
+    shown = (workshop + [s for s in solutions if s.timing != CLASSROOM_TIMING])[: args.top]
+    order = "the workshop's first, then by" if workshop else "by"
+    print(f"{title}; {len(shown)} listed (--top), {order} sample point nearest 87.5 % (CiA), then more TQ a bit")
+    print(format_table(shown, {CLASSROOM_TIMING: "the workshop's, in EX1.C .. EX6.C"}))
+    return 0 if solutions[0].error == 0 else 1
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -263,7 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     timing = commands.add_parser("bittiming", help="list BRGCON settings for a bit rate",
                                  description="Every valid PIC18F8680 bit timing for a classic CAN bit rate (up to "
-                                             "1 Mbit/s), best sample point first, with the BRGCON1..3 values.")
+                                             "1 Mbit/s) as CANInitialize takes it, with the BRGCON1..3 values: the "
+                                             "workshop's first, then by sample point. Where none gives the rate "
+                                             "exactly, those of the nearest rate, and exit status 1.")
     timing.add_argument("bit_rate", type=_bit_rate, nargs="?", default=CLASSROOM_BIT_RATE,
                         help="bit rate in bit/s, 1 .. 1000000 (default 125000, the classroom bus)")
     timing.add_argument("--fosc", type=_fosc, help="oscillator frequency in Hz, up to 40 MHz (default 40 MHz, the "

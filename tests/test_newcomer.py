@@ -157,3 +157,26 @@ def test_a_rerun_says_how_many_it_graded_and_how_many_it_kept(tmp_path):
     again = grade("class", cwd=tmp_path)
     assert "graded 1 submission(s), kept 2 already graded: 20/105 points in all 3, mean 6.7/35" in again.stdout, \
         again.stdout
+
+
+# ---------------------------------------------------------------------------------------- the bit-timing calculator
+def test_bittiming_lists_the_workshop_s_setting_first_under_a_title_in_caninitialize_s_order():
+    result = appsim("bittiming", "125000", "--fosc", "40000000")
+    assert result.returncode == 0, result.stderr
+    title, legend, header, first, *rows = result.stdout.splitlines()
+    assert title.startswith("125,000 bit/s at Fosc = 40 MHz: 80 valid settings give it exactly; 10 listed (--top), "
+                            "the workshop's first"), title
+    assert header.split()[:5] == ["SJW", "BRP", "PHSEG1", "PHSEG2", "PROPSEG"] and "CANInitialize(SJW, BRP" in legend
+    assert first.split()[:5] == ["4", "10", "8", "4", "3"] and first.endswith("the workshop's, in EX1.C .. EX6.C")
+    assert len(rows) == 9 and not any("workshop" in row for row in rows)
+
+
+def test_bittiming_gives_the_nearest_rate_s_settings_where_none_is_exact_with_status_1():
+    result = appsim("bittiming", "33000", "--top", "3")
+    assert result.returncode == 1, result.stderr
+    title, _, header, *rows = result.stdout.splitlines()
+    assert title.startswith("no valid setting gives exactly 33,000 bit/s at Fosc = 40 MHz (8..25 TQ a bit, BRP 1..64); "
+                            "the nearest rate is 33,057.85 bit/s (+0.18 %): 22 settings give it"), title
+    assert len(rows) == 3 and all(row.split()[1] == "55" and row.split()[7] == "+0.18" for row in rows), rows
+    far = appsim("bittiming", "1")
+    assert far.returncode == 1 and "further off than any CAN node tolerates (1.58 % at best)" in far.stdout

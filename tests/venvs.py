@@ -2,9 +2,10 @@
 
 `python -m venv --system-site-packages` does not give that when the tests run in a venv (as the README has them): it
 gives the base Python's own packages (Debian's dist-packages), not the venv's. Here the new venv's site-packages gets a
-`.pth` naming the running interpreter's site folders, after its own: Python and pip see what is installed here (so
-pip downloads none of the kit's dependencies), and what is installed into the new venv comes first. Only those folders
-are added, not their `.pth` files, so a kit installed editable here stays out of the new venv.
+`.pth` that adds the running interpreter's site folders as site folders (their own `.pth` files run, as they would
+for --system-site-packages), after its own: Python and pip see what is installed here (so pip downloads none of the
+kit's dependencies), and what is installed into the new venv comes first (a kit installed editable here is found only
+where the new venv has none of its own).
 
     python tests/venvs.py DIR        # the same from a shell (tests/test_readme.py stands it in for `python3 -m venv`)
 """
@@ -27,14 +28,15 @@ def site_folders() -> list[str]:
     return [folder for folder in dict.fromkeys(folders) if os.path.isdir(folder)]
 
 
-def make_venv(path: Path, *, pip: bool = True) -> Path:
-    """A new venv at `path` (with pip, or `--without-pip`) that also sees the running Python's packages; its bin."""
-    subprocess.run([sys.executable, "-m", "venv", *([] if pip else ["--without-pip"]), str(path)], check=True,
-                   timeout=300)
+def make_venv(path: Path, *, pip: bool = True, python: Path | None = None) -> Path:
+    """A new venv at `path` (with pip, or `--without-pip`) that also sees the running Python's packages; its bin.
+    `python` makes it (default: the running one; another must be of the same version)."""
+    subprocess.run([str(python or sys.executable), "-m", "venv", *([] if pip else ["--without-pip"]), str(path)],
+                   check=True, timeout=300)
     python = path / "bin" / "python"
     own = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
                          capture_output=True, text=True, check=True).stdout.strip()
-    Path(own, PTH).write_text("".join(f"{folder}\n" for folder in site_folders()))
+    Path(own, PTH).write_text("".join(f"import site; site.addsitedir({folder!r})\n" for folder in site_folders()))
     return path / "bin"
 
 
