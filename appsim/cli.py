@@ -194,6 +194,27 @@ def cmd_grade(args: argparse.Namespace) -> int:
     return 0
 
 
+class _Version(argparse.Action):
+    """--version: the kit as its grades record it (version and code digest) and its git commit, then exit."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        from appsim import provenance
+        from appsim.workshop.grading.results import kit_version
+        commit = provenance.commit()
+        if commit is None:
+            where = "unknown: the kit runs from no git checkout, and its wheel recorded none"
+        elif commit.endswith(provenance.DIRTY):
+            where = (f"{commit}: its code differs from that commit (changed or new files), so no commit has it; "
+                     "the digest above is its only identity")
+        else:
+            where = commit
+        print(f"appsim {kit_version()}\ngit commit {where}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="appsim",
@@ -202,6 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "`from appsim.firmware import *` and a main() that loops forever. "
                     "Everything runs on a simulated clock, deterministic, with no hardware; "
                     "--interface/--channel join any python-can bus (a vcan, a real adapter) in real time.")
+    parser.add_argument("--version", action=_Version,
+                        help="the kit's version with the digest of its code (as grade records keep it) and its git "
+                             "commit (docs/grading.md: matching a gradebook to a commit)")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     demo = commands.add_parser(

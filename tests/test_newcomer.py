@@ -126,9 +126,9 @@ def a_class(root: Path, names: tuple[str, ...]) -> Path:
     return root
 
 
-def grade(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+def grade(*args: str, cwd: Path, seed: int = 3) -> subprocess.CompletedProcess[str]:
     isolation = [] if shutil.which("bwrap") else ["--trusted"]
-    result = appsim("grade", *args, "--seed", "3", *isolation, cwd=cwd)
+    result = appsim("grade", *args, "--seed", str(seed), *isolation, cwd=cwd)
     assert result.returncode == 0, result.stdout + result.stderr
     return result
 
@@ -180,3 +180,38 @@ def test_bittiming_gives_the_nearest_rate_s_settings_where_none_is_exact_with_st
     assert len(rows) == 3 and all(row.split()[1] == "55" and row.split()[7] == "+0.18" for row in rows), rows
     far = appsim("bittiming", "1")
     assert far.returncode == 1 and "further off than any CAN node tolerates (1.58 % at best)" in far.stdout
+
+
+# ---------------------------------------------------------------------------------------- which kit this is
+def test_version_names_the_kit_as_its_records_do_and_the_checkout_s_commit(tmp_path):
+    from test_wheel import git_commit
+
+    a_class(tmp_path / "class", ("ann",))
+    grade("class", cwd=tmp_path)
+    [record] = [json.loads(line) for line in (tmp_path / "class.grades.jsonl").read_text().splitlines()]
+    result = appsim("--version", cwd=tmp_path)
+    assert result.returncode == 0 and result.stderr == "", result.stderr
+    version, commit = result.stdout.splitlines()
+    assert version == f"appsim {record['kit']}", "the version and code digest every record carries"
+    assert record["commit"] == git_commit(KIT) and commit.startswith(f"git commit {record['commit']}")
+    if record["commit"].endswith("-dirty"):
+        assert "its code differs from that commit" in commit
+
+
+def test_the_docs_gradescope_example_and_record_are_what_grade_writes(tmp_path):
+    """docs/grading.md's results.json, "..." standing for what it leaves out, and its record's fields."""
+    docs = (KIT / "docs" / "grading.md").read_text()
+    room = tmp_path / "class" / "alice"                 # the example's: the Ex1 solution and the Ex2 starter
+    room.mkdir(parents=True)
+    shutil.copy(KIT / "solutions" / "ex1.py", room)
+    shutil.copy(KIT / "exercises" / "ex2.py", room)
+    grade("class", "--gradescope", "results.json", cwd=tmp_path, seed=2024)
+    [record] = [json.loads(line) for line in (tmp_path / "class.grades.jsonl").read_text().splitlines()]
+    example = re.search(r"`--gradescope`: Gradescope's autograder .*?```json\n(.*?)```", docs, re.DOTALL).group(1)
+    shown = re.search(r'"kit": "([^"]+)",\s+"commit": "([^"]+)"', docs)
+    written = (tmp_path / "results.json").read_text()
+    written = written.replace(record["kit"], shown.group(1)).replace(str(record["commit"]), shown.group(2))
+    pattern = ".*?".join(re.escape(part) for part in example.split("..."))
+    assert re.fullmatch(pattern, written, re.DOTALL), f"docs:\n{example}\nwritten:\n{written}"
+    fields = re.search(r"`--json`, one line per submission:\n\n```json\n(.*?)```", docs, re.DOTALL).group(1)
+    assert set(re.findall(r'"(\w+)": ', fields)) >= set(record) | set(record["exercises"]["ex1"]), fields

@@ -21,6 +21,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, TextIO
 
+from appsim import provenance
 from appsim.errors import GradeError, SandboxUnavailable
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
 from appsim.workshop.grading.results import (
@@ -69,7 +70,7 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
                                                         or str(gradescope_path).endswith(("/", os.sep)))
         if gradescope is not None:
             check_output(gradescope, "the Gradescope output (--gradescope)", folder=gradescope_folder)
-        kit = kit_version()
+        kit, commit = kit_version(), provenance.commit()
         book = ResultsFile(results)
         try:
             previous = book.records()
@@ -79,10 +80,10 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
             todo = [s for s in submissions if regrade or not still_valid(previous.get(s.name), s.digest, seed, kit)]
             kept = len(submissions) - len(todo)
             print(f"appsim grade: {len(submissions)} submission(s), seed {seed} (the same seed gives the same "
-                  f"grades), results in {results}"
+                  f"grades), kit {kit} (git commit {commit or 'unknown'}), results in {results}"
                   + (f"; {kept} already graded there with this seed and kit, kept" if kept else "")
                   + ("; NOT ISOLATED (--trusted)" if trusted else ""), file=out, flush=True)
-            for number, record in enumerate(pool.grade(todo, seed, kit), start=1):
+            for number, record in enumerate(pool.grade(todo, seed, kit, commit), start=1):
                 with _ctrl_c_held():                # a record kept is a record reported, and the other way round
                     book.append(record)
                     previous[record["submission"]] = record
@@ -210,7 +211,7 @@ class _Pool:
         for worker in self.workers:
             worker.end()
 
-    def grade(self, submissions: Sequence[Submission], seed: int, kit: str) -> Iterator[Record]:
+    def grade(self, submissions: Sequence[Submission], seed: int, kit: str, commit: str | None) -> Iterator[Record]:
         """Each submission's record as soon as all its exercises are graded (in no fixed order)."""
         waiting = collections.deque(_Task(n, s, e) for n, (s, e) in
                                     enumerate((s, e) for s in submissions for e in ORDER))
@@ -229,7 +230,7 @@ class _Pool:
             marks[task.exercise] = result
             if len(marks) < len(EXERCISES):
                 return None
-            return record_of(task.submission.name, task.submission.digest, seed, kit, marks)
+            return record_of(task.submission.name, task.submission.digest, seed, kit, marks, commit)
 
         try:
             for worker in self.workers:
