@@ -15,6 +15,7 @@ from typing import Any
 from appsim.can.bittiming import CLASSIC_CAN_MAX_BIT_RATE, FOSC_MAX_HZ
 from appsim.errors import FirmwareError, OutputError
 from appsim.workshop.course import CLASSROOM_BIT_RATE, STATIONS, exercise_name
+from appsim.workshop.workspace import FOLDER as NOTEBOOKS_FOLDER
 
 HOUR, DAY = 3600, 86400
 INTERRUPTED = 130               # the exit status after Ctrl-C: 128 + SIGINT, as shells report it
@@ -174,6 +175,13 @@ def cmd_check(args: argparse.Namespace) -> int:
     verdict = check(args.exercise, args.firmware, seed=args.seed)
     print(verdict)
     return 0 if verdict.passed else 1
+
+
+def cmd_notebooks(args: argparse.Namespace) -> int:
+    """Your copy of the workshop's notebooks, to open in JupyterLab: the kit's own stay as shipped."""
+    from appsim.workshop.workspace import copy_notebooks
+    print(copy_notebooks(args.folder).report())
+    return 0
 
 
 def cmd_grade(args: argparse.Namespace) -> int:
@@ -339,6 +347,16 @@ def build_parser() -> argparse.ArgumentParser:
                        help="run firmware WITHOUT operating-system isolation, where the machine has none (macOS, no "
                             "bubblewrap): only for code you trust")
     grade.set_defaults(handler=cmd_grade)
+
+    notebooks = commands.add_parser(
+        "notebooks", help="copy the workshop's notebooks into a folder of your own, to open in JupyterLab",
+        description="Copy the workshop's notebooks (notebooks/ in the kit's clone) into FOLDER, where you run and "
+                    "edit them; the kit's own stay as shipped, so `git pull` updates the kit without a conflict. A "
+                    "notebook already in FOLDER is never overwritten: run it again after `git pull` to get the new "
+                    "notebooks, and to hear which of yours the kit has changed since you copied them.")
+    notebooks.add_argument("folder", nargs="?", type=Path, default=Path(NOTEBOOKS_FOLDER), metavar="FOLDER",
+                           help=f"where your notebooks go (default ./{NOTEBOOKS_FOLDER}, which git ignores)")
+    notebooks.set_defaults(handler=cmd_notebooks)
 
     checking = commands.add_parser(
         "check", help="check your firmware for one exercise, as the notebook does",
