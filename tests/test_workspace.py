@@ -116,3 +116,13 @@ def test_appsim_notebooks_refuses_a_place_it_cannot_use_with_status_2(tmp_path, 
     target = {"file": tmp_path / "file", "inside-a-file": tmp_path / "file" / "notebooks"}[where]
     result = subprocess.run([sys.executable, "-m", "appsim", "notebooks", str(target)], capture_output=True, text=True)
     assert result.returncode == 2 and words in result.stderr and "Traceback" not in result.stderr, result.stderr
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="as root only: JupyterLab refuses root")
+def test_the_readme_says_what_jupyter_lab_wants_as_root(tmp_path):
+    """As root (a container, a CI runner) JupyterLab refuses to start without --allow-root: the README says so."""
+    refused = subprocess.run([sys.executable, "-m", "jupyterlab", "--no-browser", str(tmp_path)], capture_output=True,
+                             text=True, timeout=120, env={**os.environ, "JUPYTER_RUNTIME_DIR": str(tmp_path / "rt")})
+    assert "Use --allow-root to bypass" in refused.stderr, refused.stderr[-2000:]
+    section = (KIT / "README.md").read_text().split("## The workshop")[1].split("\n## ")[0]
+    assert re.search(r"as root,\s+`jupyter lab` also wants `--allow-root`", section), section
