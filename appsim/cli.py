@@ -137,7 +137,7 @@ def cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def cmd_bittiming(args: argparse.Namespace) -> int:
-    """The settings for a bit rate, the workshop's first where it is one of them; where none gives the rate exactly,
+    """The settings for a bit rate, the classroom's first where it is one of them; where none gives the rate exactly,
     those of the nearest rate, and exit status 1."""
     from appsim.can.bittiming import TOLERATED_RATE_ERROR, calculate, error_percent, format_table, nearest
     from appsim.chip.clock import FOSC_HZ
@@ -159,9 +159,9 @@ def cmd_bittiming(args: argparse.Namespace) -> int:
                       f"at best), so it could not talk with nodes at {args.bit_rate:,} bit/s")
     workshop = [s for s in solutions if s.timing == CLASSROOM_TIMING]
     shown = (workshop + [s for s in solutions if s.timing != CLASSROOM_TIMING])[: args.top]
-    order = "the workshop's first, then by" if workshop else "by"
+    order = "the classroom's first, then by" if workshop else "by"
     print(f"{title}; {len(shown)} listed (--top), {order} sample point nearest 87.5 % (CiA), then more TQ a bit")
-    print(format_table(shown, {CLASSROOM_TIMING: "the workshop's, in EX1.C .. EX6.C"}))
+    print(format_table(shown, {CLASSROOM_TIMING: "the classroom's: every exercise's CANInitialize"}))
     return 0 if solutions[0].error == 0 else 1
 
 

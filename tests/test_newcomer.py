@@ -165,10 +165,11 @@ def test_bittiming_lists_the_workshop_s_setting_first_under_a_title_in_caninitia
     assert result.returncode == 0, result.stderr
     title, legend, header, first, *rows = result.stdout.splitlines()
     assert title.startswith("125,000 bit/s at Fosc = 40 MHz: 80 valid settings give it exactly; 10 listed (--top), "
-                            "the workshop's first"), title
+                            "the classroom's first"), title
     assert header.split()[:5] == ["SJW", "BRP", "PHSEG1", "PHSEG2", "PROPSEG"] and "CANInitialize(SJW, BRP" in legend
-    assert first.split()[:5] == ["4", "10", "8", "4", "3"] and first.endswith("the workshop's, in EX1.C .. EX6.C")
-    assert len(rows) == 9 and not any("workshop" in row for row in rows)
+    assert first.split()[:5] == ["4", "10", "8", "4", "3"]
+    assert first.endswith("the classroom's: every exercise's CANInitialize")
+    assert len(rows) == 9 and not any("classroom" in row for row in rows)
 
 
 def test_bittiming_gives_the_nearest_rate_s_settings_where_none_is_exact_with_status_1():
