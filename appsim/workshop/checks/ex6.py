@@ -59,8 +59,7 @@ def run(trial: Trial) -> list[CheckResult]:
     other_id = next(station_ids(k)["MESSAGE_ID1"] for k in room.stations if k != trial.station)
     trial.node("tester", test_node(trial.own_id, other_id))
     trial.run(SECONDS)
-    broadcasts = master_frames(trial)
-    joined = broadcasts[0].end_ps if broadcasts else 0     # Listen-only until then, as in Ex4
+    joined = master_frames(trial)[0].end_ps               # Listen-only until then, as in Ex4
     frames = [e for e in trial.bus.frames() if e.sender != trial.name and e.end_ps > joined]
     polls = [e for e in frames if e.frame.remote and e.frame.can_id == trial.own_id]
     mine = trial.sent()
@@ -113,7 +112,8 @@ def _rxb1(trial: Trial, frames) -> CheckResult:
     intruders = [e for e in frames if e.frame.can_id != own and trial.reception(e).startswith("RXB1")]
     if intruders:
         return CheckResult(RXB1, False, f"RXB1 took {listing(intruders)}: {trial.acceptance('RXB1')}. RX_Mask1 "
-                                        "must compare every ID bit that tells your ID from the others (0x7FF) and "
+                                        "must be a mask that tells your ID from every ID on this bus (0x7FF is the "
+                                        "safe one; 0x0FF passes here by luck) and "
                                         f"RX_Filter2 = MESSAGE_ID1 = {hex_id(own)}: check that RXB1's MASK is set "
                                         "correctly (see the TODO).")
     if misplaced:
