@@ -15,6 +15,7 @@ from appsim.errors import FirmwareError, OutputError
 from appsim.workshop.course import CLASSROOM_BIT_RATE, STATIONS, exercise_name
 
 HOUR, DAY = 3600, 86400
+DEMO_SECONDS, BOARD_SECONDS, CLASSROOM_SECONDS = 2.0, 0.5, 2.0
 INTERRUPTED = 130               # the exit status after Ctrl-C: 128 + SIGINT, as shells report it
 
 
@@ -115,7 +116,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return session.cmd_demo(args)
 
 
+def _serving(args: argparse.Namespace, default_seconds: float, what: str) -> None:
+    """--serve: the run lasts a day unless --seconds says (Ctrl-C stops it), and the programs are told what it is."""
+    if args.seconds is None:
+        args.seconds = DAY if args.serve else default_seconds
+    args.serving = what
+
+
 def cmd_board(args: argparse.Namespace) -> int:
+    _serving(args, BOARD_SECONDS, f"{Path(args.firmware).name} on one APP023 board")
     from appsim import session
     return session.cmd_board(args)
 
@@ -124,6 +133,7 @@ def cmd_classroom(args: argparse.Namespace) -> int:
     if args.station is not None and args.join is None:
         args.usage_error("--station says which station your firmware takes, so it goes with --join: "
                          "--join my_ex3.py --station 2")
+    _serving(args, CLASSROOM_SECONDS, f"the classroom at exercise {args.exercise}")
     from appsim import session
     return session.cmd_classroom(args)
 
@@ -230,9 +240,16 @@ def build_parser() -> argparse.ArgumentParser:
     monitor.add_argument("--transport", choices=("pty", "socket"), default="pty",
                          help="pty (a /dev/pts path) or socket (socket://127.0.0.1:PORT for pyserial)")
 
-    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0)):
-        sub.add_argument("--seconds", type=_seconds, default=default_seconds,
-                         help=f"simulated time to run, up to a day (default {default_seconds:g} s)")
+    demo.add_argument("--seconds", type=_seconds, default=DEMO_SECONDS,
+                      help=f"simulated time to run, up to a day (default {DEMO_SECONDS:g} s)")
+    for sub, default_seconds in ((board, BOARD_SECONDS), (classroom, CLASSROOM_SECONDS)):
+        sub.add_argument("--seconds", type=_seconds, default=None,
+                         help=f"simulated time to run, up to a day (default {default_seconds:g} s; with --serve a "
+                              "day, until Ctrl-C)")
+        sub.add_argument("--serve", nargs="?", const="classroom", metavar="NAME",
+                         help="serve the bus to python-can programs of this user on this machine (127.0.0.1 only), "
+                              "in real time: can.Bus(interface='appsim', channel=NAME), python -m can.viewer -i appsim "
+                              "-c NAME (default NAME: classroom; docs/pythoncan.md)")
     monitor.add_argument("--seconds", type=_seconds, default=60.0,
                          help="how long the monitor runs, in seconds of real time: it stops then (default 60 s, "
                               "up to a day; Ctrl-C stops it sooner)")

@@ -18,6 +18,7 @@ from appsim.board.usbcdc import UsbCdc
 from appsim.bus.link import BusLink
 from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, cannot_write, error_counters, summary
 from appsim.bus.realtime import WallClock
+from appsim.bus.serve import ClassroomServer
 from appsim.bus.waveform import WaveformLog
 from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
@@ -69,6 +70,7 @@ class Session:
         self.bus = Bus(self.sim, CLASSROOM_BIT_RATE)
         self.out = out
         self.link: BusLink | None = None
+        self.server: ClassroomServer | None = None
         self.trace = LiveTrace(self.bus)
         self.logs: list[EventFile] = []
         self.reported: set[str] = set()          # boards whose stop was reported
@@ -83,9 +85,20 @@ class Session:
                 except (can.CanError, ValueError, OSError, ImportError) as error:
                     raise SystemExit(f"appsim: cannot open the python-can bus interface={args.interface!r} "
                                      f"channel={args.channel!r}: {error}") from None
+            if getattr(args, "serve", None):
+                try:
+                    self.server = ClassroomServer(self.bus, args.serve, what=getattr(args, "serving", ""))
+                except (can.CanError, OSError) as error:
+                    raise SystemExit(f"appsim: cannot serve the classroom to python-can: {error}") from None
         except BaseException:
             self.close()
             raise
+
+    @property
+    def real_time(self) -> bool:
+        """Linked to an outside bus or served to python-can programs: it runs paced to the wall clock, its trace shown
+        as it goes."""
+        return self.link is not None or self.server is not None
 
     def _keep(self, log: EventFile) -> None:
         self.logs.append(log)
@@ -97,10 +110,11 @@ class Session:
         wall clock with `pollers` and the link polled between slices, the trace shown live if `live`, and a board
         that stops reported when it does. `progress` shows how far it is on a terminal (as fast as it can, runs of
         5 s or more show their simulated time anyway)."""
-        if self.link is None and not real_time and progress is None and seconds >= 5:
+        real_time = real_time or self.real_time
+        if not real_time and progress is None and seconds >= 5:
             progress = Progress(self.sim, seconds)
         try:
-            if self.link is None and not real_time:
+            if not real_time:
                 self._fast(seconds, progress)
                 return
             clock = WallClock(self.sim)
@@ -111,6 +125,10 @@ class Session:
                 clock.add_poller(self.link.poll)
                 print(f"linked to {self.link.outside.channel_info}, running in real time for {seconds:g} s "
                       "(Ctrl-C stops)", file=self.out)
+            if self.server is not None:
+                clock.add_poller(self.server.poll)
+                print(f"{self.server.how_to_join}; running in real time for {seconds:g} s (Ctrl-C stops)",
+                      file=self.out, flush=True)
             if live:
                 clock.add_poller(lambda: self._show(self.trace.new_lines()))
             clock.run(seconds)
@@ -174,6 +192,10 @@ class Session:
             print(self.link.report(), file=self.out)
             self.link.close()
             self.link = None
+        if self.server is not None:
+            self.server.close()
+            print(self.server.report(), file=self.out)
+            self.server = None
 
     def __enter__(self) -> Session:
         return self
@@ -311,7 +333,7 @@ def cmd_board(args: argparse.Namespace, session: Session) -> None:
               file=out)
         for _, what in event.received:
             print(f"  {event.end_ps / PS_PER_SECOND:10.6f} s  received: {what}", file=out)
-    if session.link is None:
+    if not session.real_time:
         session.print_trace()
     print(board.glcd, file=out)
     session.print_written()
@@ -341,7 +363,7 @@ def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
     print(f"Classroom at exercise {args.exercise}: the master and six stations running "
           f"solutions/ex{args.exercise}.py{who}.", file=out)
     session.run(args.seconds, live=True)
-    if session.link is None:
+    if not session.real_time:
         session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN, more="--full-trace prints them")
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
