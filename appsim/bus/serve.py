@@ -31,6 +31,7 @@ MAX_CLIENTS = 256               # programs on one classroom at once; the next is
 TX_QUEUE = 64                   # a program's frames waiting for the bus, as the link's queue (70 ms of the bus)
 RX_QUEUE = 1024                 # frames and error frames waiting for a program to read them: then they are dropped
 ACCEPT_PER_POLL = 32            # connections taken per poll, so a storm of them cannot stall the simulation
+SEND_BUFFER = 16 * 1024         # the kernel's buffer towards a program (700 frames): what it holds stays small too
 READ_BYTES = 64 * 1024          # read from one program per poll at most
 HELLO_TIMEOUT_S = 5.0           # a program that connects and does not say who it is is shown the door
 TOLD_PER_CLIENT = 20            # programs listed by name in the report; the rest are added up
@@ -307,6 +308,7 @@ class ClassroomServer:
                 return
             sock.setblocking(False)
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
             client = Client(self, sock, f"{peer[0]}:{peer[1]}")
             self.clients.append(client)
             self._selector.register(sock, selectors.EVENT_READ, client)
