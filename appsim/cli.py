@@ -164,6 +164,12 @@ def cmd_check(args: argparse.Namespace) -> int:
     return 0 if verdict.passed else 1
 
 
+def cmd_dbc(args: argparse.Namespace) -> int:
+    from appsim.workshop.frames import WORKSHOP_DBC
+    print(WORKSHOP_DBC)
+    return 0
+
+
 def cmd_grade(args: argparse.Namespace) -> int:
     from appsim.errors import GradeError
     from appsim.workshop.grading.grade import run
@@ -260,6 +266,10 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--vcd", type=Path, metavar="FILE",
                          help="write the CAN line's waveform as it goes, a VCD for PulseView or sigrok-cli's CAN "
                               "decoder (docs/traces.md)")
+    for sub in (demo, board, classroom):
+        sub.add_argument("--dbc", nargs="?", const="", metavar="FILE",
+                         help="show each frame's signals under it, read through a CAN database: FILE, or without "
+                              "it the workshop's (appsim dbc prints where it is)")
     for sub in (board, classroom, monitor):
         sub.add_argument("--log", type=Path, action="append", metavar="FILE",
                          help="write every frame as it goes: .log (candump), .asc, .blf or .csv (give --log again "
@@ -307,6 +317,12 @@ def build_parser() -> argparse.ArgumentParser:
                        help="run firmware WITHOUT operating-system isolation, where the machine has none (macOS, no "
                             "bubblewrap): only for code you trust")
     grade.set_defaults(handler=cmd_grade)
+
+    dbc = commands.add_parser(
+        "dbc", help="where the workshop's CAN database (DBC) is, for cantools and other DBC tools",
+        description="Print the path of workshop.dbc, the workshop's frames as a CAN database (0x088, 0x081..0x086, "
+                    "0x100..0x150 with their A/D value): cantools decode \"$(appsim dbc)\" < trace.log")
+    dbc.set_defaults(handler=cmd_dbc)
 
     checking = commands.add_parser(
         "check", help="check your firmware for one exercise, as the notebook does",

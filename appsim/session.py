@@ -19,6 +19,7 @@ from appsim.bus.link import BusLink
 from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, cannot_write, error_counters, summary
 from appsim.bus.realtime import WallClock
 from appsim.bus.serve import ClassroomServer
+from appsim.bus.signals import DbcError, Signals
 from appsim.bus.waveform import WaveformLog
 from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
@@ -28,8 +29,10 @@ from appsim.workshop.checks.demo1 import FRAME_LINE, LOST_COUNT
 from appsim.workshop.classroom import Classroom, station_defines
 from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES, SOLUTIONS, STATIONS, station_ids
 from appsim.workshop.faults import board_fault
+from appsim.workshop.frames import WORKSHOP_DBC
 
 TRACE_LINES_SHOWN = 40
+SIGNAL_INDENT = " " * 13        # the lines under a frame's (its signals, a note): not frames of their own
 PROGRESS_EVERY_S = 1.0          # wall-clock seconds between two progress lines
 
 
@@ -58,6 +61,16 @@ class Progress:
             self.shown = False
 
 
+def dbc_signals(dbc: str | None) -> Signals | None:
+    """--dbc: the signals of the DBC it names ("" for the workshop's, as --dbc alone gives), or None without it."""
+    if dbc is None:
+        return None
+    try:
+        return Signals(dbc or WORKSHOP_DBC)
+    except DbcError as error:
+        raise SystemExit(f"appsim: --dbc: {error}") from None
+
+
 class Session:
     """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time.
 
@@ -71,7 +84,7 @@ class Session:
         self.out = out
         self.link: BusLink | None = None
         self.server: ClassroomServer | None = None
-        self.trace = LiveTrace(self.bus)
+        self.trace = LiveTrace(self.bus, signals=dbc_signals(getattr(args, "dbc", None)))
         self.logs: list[EventFile] = []
         self.reported: set[str] = set()          # boards whose stop was reported
         try:
@@ -149,15 +162,16 @@ class Session:
             print(line, file=self.out)
 
     def print_trace(self, limit: int | None = TRACE_LINES_SHOWN, *, more: str = "") -> None:
-        """The trace's new lines, the first `limit` of them; past the limit, how many more and where they are (in a
-        log, or `more`: how this command shows them)."""
+        """The trace's new lines, those of the first `limit` frames (a frame's signals, with --dbc, on the line under
+        it); past the limit, how many more and where they are (in a log, or `more`: how this command shows them)."""
         lines = self.trace.new_lines()
+        starts = [n for n, line in enumerate(lines) if not line.startswith(SIGNAL_INDENT)]    # each frame's line
         print(HEADER, file=self.out)
-        self._show(lines if limit is None else lines[:limit])
-        if limit is not None and len(lines) > limit:
+        self._show(lines if limit is None or len(starts) <= limit else lines[:starts[limit]])
+        if limit is not None and len(starts) > limit:
             logged = next((log.path for log in self.logs if isinstance(log, TraceLog)), None)
             where = f"all of them are in {logged}" if logged else "--log trace.log keeps them"
-            print(f"{'':>11}  ... {len(lines) - limit} more frames ({where}{'; ' + more if more else ''})",
+            print(f"{'':>11}  ... {len(starts) - limit} more frames ({where}{'; ' + more if more else ''})",
                   file=self.out)
         print(summary(self.bus), file=self.out)
 

@@ -500,7 +500,7 @@ def test_can_logger_writes_the_classroom_and_cantools_decodes_it_with_the_worksh
                              input="\n".join(lines), capture_output=True, text=True, timeout=60)
     assert decoded.returncode == 0, decoded.stderr
     assert "MASTER_BROADCAST(" in decoded.stdout and "ADRES: 512" in decoded.stdout, decoded.stdout[:2000]
-    assert "STATION1_ANSWER(" in decoded.stdout or "RTR_STATION" in decoded.stdout
+    assert "MASTER_ANSWER1(" in decoded.stdout, "Ex5: the master answers station 1's RTR"
 
 
 def test_only_the_user_who_serves_a_classroom_can_join_it(env):
