@@ -188,6 +188,22 @@ def cmd_grade(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_gradescope_autograder(args: argparse.Namespace) -> int:
+    import random
+
+    from appsim.errors import GradeError
+    from appsim.workshop.grading.autograder import build
+    seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2**32)
+    try:
+        build(args.out, seed=seed, time_limit_s=args.time_limit, visibility=args.visibility)
+    except GradeError as error:
+        print(f"appsim gradescope-autograder: {error}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.out}: upload it as the assignment's autograder (Gradescope: Configure Autograder, zip file "
+          f"upload). Seed {seed}: `appsim grade SUBMISSION --seed {seed}` gives the same marks (docs/grading.md)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="appsim",
@@ -323,6 +339,21 @@ def build_parser() -> argparse.ArgumentParser:
         description="Print the path of workshop.dbc, the workshop's frames as a CAN database (0x088, 0x081..0x086, "
                     "0x100..0x150 with their A/D value): cantools decode \"$(appsim dbc)\" < trace.log")
     dbc.set_defaults(handler=cmd_dbc)
+
+    autograder = commands.add_parser(
+        "gradescope-autograder", help="write a Gradescope autograder zip that grades as appsim grade does",
+        description="Write OUT.zip for a Gradescope programming assignment: setup.sh installs the kit (from a wheel "
+                    "inside the zip) and bubblewrap; run_autograder grades /autograder/submission with appsim grade's "
+                    "checks, seed and verdict, into results.json, one test per check. See docs/grading.md.")
+    autograder.add_argument("out", type=Path, metavar="OUT.zip", help="the zip to write")
+    autograder.add_argument("--seed", type=_seed, help="seed of the random inputs, the same for every student "
+                                                       "(default: drawn and printed)")
+    autograder.add_argument("--time-limit", type=_cpu_seconds, default=60.0,
+                            help="CPU seconds per exercise, as appsim grade's (default 60)")
+    autograder.add_argument("--visibility", default="visible",
+                            choices=("visible", "after_due_date", "after_published", "hidden"),
+                            help="when students see each check's result on Gradescope (default visible)")
+    autograder.set_defaults(handler=cmd_gradescope_autograder)
 
     checking = commands.add_parser(
         "check", help="check your firmware for one exercise, as the notebook does",
