@@ -372,3 +372,67 @@ class Station:
         """What a terminal on the PC shows of the USB-CDC port: the first `characters` the board sent."""
         text = self.usb.decode("latin-1").replace("\0", "")      # C18's putsUSART sends the NUL; terminals skip it
         return Note(text[:characters] or "(nothing)", table=True)
+
+
+# ------------------------------------------------------------------------------------------------- a served classroom
+class ServedClassroom:
+    """The classroom of `exercise` (the master and six stations running its solution, the PC's monitor) served to
+    python-can programs as `channel` (`appsim classroom --serve` in a cell): it runs in real time in a thread of its
+    own for `seconds`, or until `stop()`, while other cells join it with `can.Bus(interface="appsim",
+    channel=channel)`. It shows itself as how to join, and once stopped, what its programs sent and received."""
+
+    def __init__(self, exercise: int = 2, channel: str = "notebook", *, seconds: float = 60.0):
+        import threading
+
+        self.exercise, self.channel, self.seconds = exercise, channel, seconds
+        self.report = ""
+        self.how_to_join = ""
+        self.failure: BaseException | None = None
+        self._stop = threading.Event()
+        self._ready = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"appsim-{channel}", daemon=True)
+        self._thread.start()
+        self._ready.wait(30)
+        if self.failure is not None:
+            raise self.failure
+
+    def _run(self) -> None:
+        from appsim.bus.realtime import WallClock
+        from appsim.bus.serve import ClassroomServer
+        from appsim.bus.wire import Bus
+        from appsim.sim import Simulator
+        from appsim.workshop.classroom import Classroom
+        from appsim.workshop.course import CLASSROOM_BIT_RATE
+
+        server = None
+        try:
+            bus = Bus(Simulator(), CLASSROOM_BIT_RATE)
+            Classroom(bus, self.exercise, seed=SEED)        # built in this thread: the firmware runs here
+            server = ClassroomServer(bus, self.channel, what=f"the notebook's classroom at exercise {self.exercise}")
+            self.how_to_join = server.how_to_join
+            clock = WallClock(bus.sim)
+            clock.add_poller(server.poll)
+            self._ready.set()
+            clock.run(self.seconds, stop=self._stop.is_set)
+        except BaseException as error:          # told by the constructor, or by `stop()`
+            self.failure = error
+        finally:
+            if server is not None:
+                server.close()
+                self.report = server.report()
+            self._ready.set()
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def stop(self) -> ServedClassroom:
+        """Stop serving (its programs' next recv says the classroom ended); the report is then `report`."""
+        self._stop.set()
+        self._thread.join(30)
+        return self
+
+    def __repr__(self) -> str:
+        if self.running:
+            return f"The classroom of EX{self.exercise} is running in real time, {self.how_to_join}"
+        return self.report or f"The classroom stopped: {self.failure}"
