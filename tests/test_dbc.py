@@ -18,7 +18,7 @@ from appsim.workshop import frames
 from appsim.workshop.course import MASTER_ID, RTR_IDS, STATION_IDS
 from appsim.workshop.timeline import describe
 
-CANTOOLS = Path(sys.executable).parent / "cantools"
+CANTOOLS = [sys.executable, "-m", "cantools"]       # wherever pip put its script
 
 
 def appsim(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -128,7 +128,7 @@ def test_cantools_decode_reads_the_kits_own_log_with_the_workshop_dbc(tmp_path):
     assert result.returncode == 0, result.stderr
     where = appsim("dbc", cwd=tmp_path).stdout.strip()
     assert Path(where) == frames.WORKSHOP_DBC
-    decoded = subprocess.run([str(CANTOOLS), "decode", where], input=(tmp_path / "trace.log").read_text(),
+    decoded = subprocess.run([*CANTOOLS, "decode", where], input=(tmp_path / "trace.log").read_text(),
                              capture_output=True, text=True, timeout=60)
     assert decoded.returncode == 0, decoded.stderr
     assert "MASTER_BROADCAST(" in decoded.stdout and "MASTER_ANSWER1(" in decoded.stdout

@@ -496,7 +496,7 @@ def test_can_logger_writes_the_classroom_and_cantools_decodes_it_with_the_worksh
         classroom.communicate(timeout=30)
     lines = log.read_text().splitlines()
     assert any(" classroom 088#010203" in line for line in lines), lines[:5]
-    decoded = subprocess.run([str(Path(sys.executable).parent / "cantools"), "decode", str(WORKSHOP_DBC)],
+    decoded = subprocess.run([sys.executable, "-m", "cantools", "decode", str(WORKSHOP_DBC)],
                              input="\n".join(lines), capture_output=True, text=True, timeout=60)
     assert decoded.returncode == 0, decoded.stderr
     assert "MASTER_BROADCAST(" in decoded.stdout and "ADRES: 512" in decoded.stdout, decoded.stdout[:2000]
