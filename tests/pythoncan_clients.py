@@ -6,7 +6,6 @@ import os
 import subprocess
 import sys
 import textwrap
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -33,58 +32,40 @@ def start(source: str, env: dict[str, str]) -> subprocess.Popen[str]:
 
 
 class Served:
-    """A simulated bus (and what `build(bus)` puts on it) served as `channel` in a thread of this process, in real
-    time, until the `with` block ends; `server` is the ClassroomServer, `report` what it said at the end."""
+    """A bare simulated bus (and what `build(bus)` puts on it) served as `channel` in the background of this process
+    (`appsim.bus.serve.ServedInBackground`), announced in the test's own runtime folder, until the `with` block ends;
+    `server` is the ClassroomServer, `report` what it said at the end."""
 
     def __init__(self, env: dict[str, str], channel: str = "test", *, build: Any = None, **server: Any):
         self.env, self.channel, self.build, self.options = env, channel, build, server
-        self.server: Any = None
-        self.bus: Any = None
         self.report = ""
-        self.failure: BaseException | None = None
-        self._stop = threading.Event()
-        self._ready = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
 
-    def _run(self) -> None:
-        from appsim.bus.realtime import WallClock
-        from appsim.bus.serve import ClassroomServer
+    def _bus(self) -> Any:
         from appsim.bus.wire import Bus
         from appsim.sim import Simulator
 
+        bus = Bus(Simulator(), 125_000)
+        if self.build is not None:
+            self.build(bus)
+        return bus
+
+    def __enter__(self) -> Served:
+        from appsim.bus.serve import ServedInBackground
+
         saved = os.environ.get("XDG_RUNTIME_DIR")
-        os.environ["XDG_RUNTIME_DIR"] = self.env["XDG_RUNTIME_DIR"]
+        os.environ["XDG_RUNTIME_DIR"] = self.env["XDG_RUNTIME_DIR"]     # where the thread announces it
         try:
-            self.bus = Bus(Simulator(), 125_000)
-            if self.build is not None:
-                self.build(self.bus)
-            self.server = ClassroomServer(self.bus, self.channel, **self.options)
-            clock = WallClock(self.bus.sim)
-            clock.add_poller(self.server.poll)
-            self._ready.set()
-            clock.run(None, stop=self._stop.is_set)
-        except BaseException as error:      # the test says what went wrong
-            self.failure = error
+            self.served = ServedInBackground(self._bus, self.channel, **self.options)
         finally:
             if saved is None:
                 os.environ.pop("XDG_RUNTIME_DIR", None)
             else:
                 os.environ["XDG_RUNTIME_DIR"] = saved
-            if self.server is not None:
-                self.server.close()
-                self.report = self.server.report()
-            self._ready.set()
-
-    def __enter__(self) -> Served:
-        self._thread.start()
-        assert self._ready.wait(30), "the served bus did not start"
-        if self.failure is not None:
-            raise self.failure
+        self.server, self.bus = self.served.server, self.served.bus
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(30)
+        self.report = self.served.stop().report
 
     def wait_for(self, condition: Any, timeout: float = 20) -> None:
         """Until `condition(server)` holds (the server is read between its polls; close enough for counts)."""

@@ -13,9 +13,12 @@ import re
 import secrets
 import selectors
 import socket
+import threading
 import time
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from appsim.bus.bitlevel import Assembled
 from appsim.bus.controller import Mode, Wire
@@ -107,7 +110,8 @@ class ClientNode:
         self.on_wire = None
         frame = self.queue.popleft()
         self._counters(max(self.tec - 1, 0), self.rec)
-        self.client.sent(frame)
+        if self.requested != Mode.DISABLE:      # a program that has left is told nothing more
+            self.client.sent(frame)
 
     def arbitration_lost(self, buffer: str) -> None:
         self.on_wire = None
@@ -139,9 +143,8 @@ class ClientNode:
                 self.wire.transmit_requested(self)
 
     def _counters(self, tec: int, rec: int) -> None:
-        before = self.state
         self.tec, self.rec = tec, rec
-        self.client.state_changed(self.state != before)
+        self.client.state_changed()
 
 
 def controller_status(node: ClientNode) -> int:
@@ -193,7 +196,7 @@ class Client:
         self.delivered += 1
         self.control.append(self._pack(P.SENT, frame))
 
-    def state_changed(self, crossed: bool) -> None:
+    def state_changed(self) -> None:
         self.state_due = True
 
     def error(self, error_class: int, protocol: int, location: int) -> None:
@@ -475,11 +478,8 @@ class ClassroomServer:
             return
         if client.inbox:
             self.totals["bytes of a record cut off when it left"] += len(client.inbox)
-        unsent = len(node.queue) - (node.on_wire is not None)
-        self.totals["frames it left before they went on the bus"] += unsent
-        for _ in range(unsent):
-            node.queue.pop()
-        node.request(Mode.DISABLE)
+        self.totals["frames it left before they went through"] += len(node.queue)     # the one on the wire too
+        node.request(Mode.DISABLE)              # it sends nothing more; the frame on the wire, if any, ends
         self._free.append(node)
         self._account(client)
         log.info("%s left the classroom%s", client.name, f": {why}" if why else "")
@@ -530,7 +530,7 @@ class ClassroomServer:
                  f"{sum(1 for c in self.clients if c.node is not None)} still on; they sent "
                  f"{totals['frames from programs']} frames = {totals['went through']} went through + "
                  f"{totals['refused']} refused + {totals['taken off by flush']} taken off by flush_tx_buffer + "
-                 f"{totals['frames it left before they went on the bus']} left unsent when the program left + "
+                 f"{totals['frames it left before they went through']} left unsent when the program left + "
                  f"{self._waiting()} still queued; {totals['frames and error frames for programs']} frames and error "
                  f"frames for them, {totals['dropped: a program did not read them']} dropped (not read in time)"]
         for client in [*self.gone, *(c for c in self.clients if c.node is not None)][-TOLD_PER_CLIENT:]:
@@ -577,3 +577,53 @@ class ClassroomServer:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class ServedInBackground:
+    """The bus `build()` makes (with what it puts on it), served as `channel` and run in real time in a thread of its
+    own for `seconds` (None: until `stop()`), while the caller goes on: a notebook's cells, a test. The bus and its
+    nodes are built in that thread, where their firmware runs; `server`, `bus`, and once stopped `report`."""
+
+    def __init__(self, build: Callable[[], Bus], channel: str = P.DEFAULT_CHANNEL, *, seconds: float | None = None,
+                 what: str = "", **options: Any):
+        self.channel, self.seconds = channel, seconds
+        self.bus: Bus | None = None
+        self.server: ClassroomServer | None = None
+        self.how_to_join = self.report = ""
+        self.failure: BaseException | None = None
+        self._build, self._what, self._options = build, what, options
+        self._stop, self._ready = threading.Event(), threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"appsim-{channel}", daemon=True)
+        self._thread.start()
+        self._ready.wait(30)
+        if self.failure is not None:
+            raise self.failure
+
+    def _run(self) -> None:
+        from appsim.bus.realtime import WallClock
+
+        try:
+            self.bus = self._build()
+            self.server = ClassroomServer(self.bus, self.channel, what=self._what, **self._options)
+            self.how_to_join = self.server.how_to_join
+            clock = WallClock(self.bus.sim)
+            clock.add_poller(self.server.poll)
+            self._ready.set()
+            clock.run(self.seconds, stop=self._stop.is_set)
+        except BaseException as error:          # told by the constructor, or kept in `failure`
+            self.failure = error
+        finally:
+            if self.server is not None:
+                self.server.close()
+                self.report = self.server.report()
+            self._ready.set()
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def stop(self) -> ServedInBackground:
+        """Stop serving (its programs' next recv says the classroom ended); what they did is then `report`."""
+        self._stop.set()
+        self._thread.join(30)
+        return self

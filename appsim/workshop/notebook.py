@@ -21,16 +21,18 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from appsim.bus import monitor
 from appsim.bus.monitor import TraceTable
+from appsim.bus.serve import ServedInBackground
 from appsim.bus.signals import Signals
-from appsim.bus.wire import BusEvent
+from appsim.bus.wire import Bus, BusEvent
 from appsim.firmware.loader import load_source
-from appsim.sim import PS_PER_SECOND
+from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import checks, plots
 from appsim.workshop.checks import RUNS, CheckResult, Verdict
 from appsim.workshop.checks.ex4 import before_the_first_0x088
 from appsim.workshop.checks.trial import Fatal, Firmware, Trial, loaded
 from appsim.workshop.checks.verdict import results_html, results_text
-from appsim.workshop.course import STATIONS, exercise_name
+from appsim.workshop.classroom import Classroom
+from appsim.workshop.course import CLASSROOM_BIT_RATE, STATIONS, exercise_name
 from appsim.workshop.faults import Fault
 from appsim.workshop.frames import WORKSHOP_DBC
 
@@ -375,62 +377,21 @@ class Station:
 
 
 # ------------------------------------------------------------------------------------------------- a served classroom
-class ServedClassroom:
+class ServedClassroom(ServedInBackground):
     """The classroom of `exercise` (the master and six stations running its solution, the PC's monitor) served to
-    python-can programs as `channel` (`appsim classroom --serve` in a cell): it runs in real time in a thread of its
-    own for `seconds`, or until `stop()`, while other cells join it with `can.Bus(interface="appsim",
-    channel=channel)`. It shows itself as how to join, and once stopped, what its programs sent and received."""
+    python-can programs as `channel` (`appsim classroom --serve` in a cell): it runs in real time in the background
+    for `seconds`, or until `stop()`, while other cells join it with `can.Bus(interface="appsim", channel=channel)`.
+    It shows itself as how to join, and once stopped, what its programs sent and received."""
 
     def __init__(self, exercise: int = 2, channel: str = "notebook", *, seconds: float = 60.0):
-        import threading
+        self.exercise = exercise
 
-        self.exercise, self.channel, self.seconds = exercise, channel, seconds
-        self.report = ""
-        self.how_to_join = ""
-        self.failure: BaseException | None = None
-        self._stop = threading.Event()
-        self._ready = threading.Event()
-        self._thread = threading.Thread(target=self._run, name=f"appsim-{channel}", daemon=True)
-        self._thread.start()
-        self._ready.wait(30)
-        if self.failure is not None:
-            raise self.failure
-
-    def _run(self) -> None:
-        from appsim.bus.realtime import WallClock
-        from appsim.bus.serve import ClassroomServer
-        from appsim.bus.wire import Bus
-        from appsim.sim import Simulator
-        from appsim.workshop.classroom import Classroom
-        from appsim.workshop.course import CLASSROOM_BIT_RATE
-
-        server = None
-        try:
+        def build() -> Bus:
             bus = Bus(Simulator(), CLASSROOM_BIT_RATE)
-            Classroom(bus, self.exercise, seed=SEED)        # built in this thread: the firmware runs here
-            server = ClassroomServer(bus, self.channel, what=f"the notebook's classroom at exercise {self.exercise}")
-            self.how_to_join = server.how_to_join
-            clock = WallClock(bus.sim)
-            clock.add_poller(server.poll)
-            self._ready.set()
-            clock.run(self.seconds, stop=self._stop.is_set)
-        except BaseException as error:          # told by the constructor, or by `stop()`
-            self.failure = error
-        finally:
-            if server is not None:
-                server.close()
-                self.report = server.report()
-            self._ready.set()
+            Classroom(bus, exercise, seed=SEED)
+            return bus
 
-    @property
-    def running(self) -> bool:
-        return self._thread.is_alive()
-
-    def stop(self) -> ServedClassroom:
-        """Stop serving (its programs' next recv says the classroom ended); the report is then `report`."""
-        self._stop.set()
-        self._thread.join(30)
-        return self
+        super().__init__(build, channel, seconds=seconds, what=f"the notebook's classroom at exercise {exercise}")
 
     def __repr__(self) -> str:
         if self.running:
