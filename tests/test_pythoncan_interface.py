@@ -452,23 +452,30 @@ def _tmux_screen(session: str) -> str:
     return subprocess.run(["tmux", "capture-pane", "-p", "-t", session], capture_output=True, text=True).stdout
 
 
-@pytest.mark.skipif(shutil.which("tmux") is None, reason="drives python -m can.viewer in tmux (Debian package tmux)")
-def test_can_viewer_watches_the_classroom_in_a_terminal(env, tmp_path):
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="drives terminal programs in tmux (Debian package tmux)")
+@pytest.mark.parametrize("tool, shows", [
+    (["can.viewer", "-i", "appsim", "-c", "classroom"],
+     ["0x088", "01 02 03", *(f"0x{i:03X}" for i in range(0x100, 0x160, 0x10))]),
+    (["cantools", "monitor", "-i", "appsim", "-c", "classroom", "WORKSHOP_DBC"],
+     ["MASTER_BROADCAST(", "ADRES: 512 counts", "STATION1(", "STATION2(", "Received: "]),
+], ids=["can.viewer", "cantools monitor"])
+def test_a_terminal_tool_watches_the_classroom(env, tmp_path, tool, shows):
+    from appsim.workshop.frames import WORKSHOP_DBC
+
     classroom = subprocess.Popen([sys.executable, "-m", "appsim", "classroom", "--exercise", "2", "--serve",
                                   "--seconds", "30"], env=env, cwd=tmp_path, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE, text=True)
-    session = f"appsim-viewer-{os.getpid()}"
+    session = f"appsim-{tool[0].replace('.', '-')}-{os.getpid()}"     # no dots: tmux reads them as panes
     try:
         assert "serving it to python-can" in classroom.stdout.readline() + classroom.stdout.readline()
         command = " ".join(["env", f"XDG_RUNTIME_DIR={env['XDG_RUNTIME_DIR']}", f"PYTHONPATH={KIT}",
-                            sys.executable, "-m", "can.viewer", "-i", "appsim", "-c", "classroom"])
-        subprocess.run(["tmux", "new-session", "-d", "-s", session, "-x", "120", "-y", "30", command], check=True)
+                            sys.executable, "-m", *(str(WORKSHOP_DBC) if a == "WORKSHOP_DBC" else a for a in tool)])
+        subprocess.run(["tmux", "new-session", "-d", "-s", session, "-x", "150", "-y", "40", command], check=True)
         deadline, screen = time.monotonic() + 20, ""
-        while time.monotonic() < deadline and not all(f"0x{i:03X}" in screen for i in (0x88, 0x100, 0x150)):
+        while time.monotonic() < deadline and not all(text in screen for text in shows):
             time.sleep(0.3)
             screen = _tmux_screen(session)
-        assert "0x088" in screen and "01 02 03" in screen, screen
-        assert all(f"0x{i:03X}" in screen for i in range(0x100, 0x160, 0x10)), screen
+        assert all(text in screen for text in shows), screen
         subprocess.run(["tmux", "send-keys", "-t", session, "q"], check=True)
     finally:
         subprocess.run(["tmux", "kill-session", "-t", session], capture_output=True)
