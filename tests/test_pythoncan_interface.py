@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from textwrap import dedent
 
 import pytest
 from pythoncan_clients import KIT, Served, private_runtime, program, start
@@ -45,6 +46,24 @@ def answer(sock: socket.socket) -> dict:
     return json.loads(line)
 
 
+JOIN = """
+import can, time
+for _ in range(100):                                    # until the board's command serves it
+    try:
+        bus = can.Bus(interface='appsim', channel='{channel}', {options})
+        break
+    except can.CanInitializationError:
+        time.sleep(0.1)
+"""
+
+
+def lone_board(env: dict[str, str], cwd: Path, channel: str, seconds: float) -> subprocess.Popen[str]:
+    """`appsim board solutions/ex2.py --serve CHANNEL`: station 1's Ex2 alone on its bus, served."""
+    return subprocess.Popen([sys.executable, "-m", "appsim", "board", str(KIT / "solutions" / "ex2.py"), "--serve",
+                             channel, "--seconds", str(seconds)], env=env, cwd=cwd, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
 def test_the_interface_is_found_by_python_can_through_its_entry_point(env):
     result = program("""
         import can, sys
@@ -63,23 +82,14 @@ def test_the_interface_is_found_by_python_can_through_its_entry_point(env):
 def test_a_program_joins_a_board_alone_on_its_bus_and_acks_its_frames(env, tmp_path):
     """`appsim board my_ex2.py --serve`: the student's script is the only other node, so the board's frames get their
     ACK from it; the board's trace says so."""
-    classroom = subprocess.Popen([sys.executable, "-m", "appsim", "board", str(KIT / "solutions" / "ex2.py"),
-                                  "--serve", "desk", "--seconds", "6"], env=env, cwd=tmp_path,
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    classroom = lone_board(env, tmp_path, "desk", 6)
     try:
-        result = program("""
-            import can, time
-            for _ in range(100):
-                try:
-                    bus = can.Bus(interface='appsim', channel='desk', name='laptop')
-                    break
-                except can.CanInitializationError:
-                    time.sleep(0.1)
+        result = program(JOIN.format(channel="desk", options="name='laptop'") + dedent("""
             frames = [m for m in (bus.recv(2) for _ in range(5)) if m is not None]
             print(bus.node, bus.state.name, ','.join(sorted({hex(m.arbitration_id) for m in frames})),
                   frames[0].data.hex())
             bus.shutdown()
-        """, env)
+        """), env)
         assert result.returncode == 0, result.stderr
         node, state, ids, data = result.stdout.split(maxsplit=3)
         assert (node, state) == ("laptop", "ACTIVE")
@@ -185,18 +195,9 @@ def test_the_lower_identifier_wins_arbitration_and_the_loser_sees_it(env):
 
 
 def test_a_listen_only_program_never_acks_and_sees_the_error_frames_of_a_lone_board(env, tmp_path):
-    classroom = subprocess.Popen([sys.executable, "-m", "appsim", "board", str(KIT / "solutions" / "ex2.py"),
-                                  "--serve", "quiet", "--seconds", "4"], env=env, cwd=tmp_path,
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    classroom = lone_board(env, tmp_path, "quiet", 4)
     try:
-        result = program("""
-            import can, time
-            for _ in range(100):
-                try:
-                    bus = can.Bus(interface='appsim', channel='quiet', listen_only=True)
-                    break
-                except can.CanInitializationError:
-                    time.sleep(0.1)
+        result = program(JOIN.format(channel="quiet", options="listen_only=True") + dedent("""
             errors = [m for m in (bus.recv(2) for _ in range(20)) if m is not None and m.is_error_frame]
             try:
                 bus.send(can.Message(arbitration_id=0x7, is_extended_id=False))
@@ -204,7 +205,7 @@ def test_a_listen_only_program_never_acks_and_sees_the_error_frames_of_a_lone_bo
                 print('refused:', error)
             print(len(errors), bus.state.name)
             bus.shutdown()
-        """, env)
+        """), env)
     finally:
         out, _ = classroom.communicate(timeout=30)
     assert result.returncode == 0, result.stderr

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from appsim.bus.bitlevel import Assembled
-from appsim.bus.controller import Mode, Wire
+from appsim.bus.controller import ErrorCounters, Mode, Wire
 from appsim.bus.wire import Bus, BusEvent
 from appsim.can import pythoncan as P
 from appsim.can.bittiming import BitTiming
@@ -45,7 +45,7 @@ ERROR_WORDS = (("ACK error", 0), ("bit error", P.CAN_ERR_PROT_BIT), ("stuff erro
                ("form error", P.CAN_ERR_PROT_FORM), ("CRC error", 0))
 
 
-class ClientNode:
+class ClientNode(ErrorCounters):
     """A python-can program's CAN controller on the simulated bus: a transmit queue sent in order (as SocketCAN's), no
     acceptance filter, and fault confinement by ISO 11898-1 (error-active, error-passive, bus-off, and back after 128
     times 11 recessive bits). It is its own `Controller` (`appsim.bus.controller`)."""
@@ -64,14 +64,6 @@ class ClientNode:
     @property
     def controller(self) -> ClientNode:
         return self
-
-    @property
-    def bus_off(self) -> bool:
-        return self.tec > 255
-
-    @property
-    def error_passive(self) -> bool:
-        return not self.bus_off and (self.tec > 127 or self.rec > 127)
 
     @property
     def state(self) -> int:
