@@ -410,6 +410,18 @@ def test_a_firmware_that_keeps_the_grader_busy_is_stopped_by_the_grader_s_cpu_ti
     assert time.monotonic() - started < 60
 
 
+def test_a_firmware_that_computes_in_its_own_process_is_stopped_by_its_own_cpu_time(tmp_path):
+    """Computing between register reads (a time-varying one, so the loop never parks and is never stalled), the
+    firmware spends its own process's CPU, not the grader's: the kernel's CPU limit ends it as "time", saying so."""
+    thinker = firmware("while True:\n    sum(range(10 ** 6))\n    SFR.TMR1L")
+    started = time.monotonic()
+    result = _graded_alone(tmp_path, "ex1", thinker, Limits(time_s=1, stall_s=5, wall_time_s=120))
+    assert result["fault"] == "time" and result["score"] == 0
+    assert "CPU time limit: the firmware computed for more than 1 s in its own process" in \
+        result["checks"][0]["message"]
+    assert time.monotonic() - started < 60
+
+
 def _cpu_loop_of(seconds: float) -> int:
     """How many turns of `sum(range(1000))` take about `seconds` of CPU here."""
     started = time.process_time()
