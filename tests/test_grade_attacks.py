@@ -562,7 +562,7 @@ def _attack():
 ''')
 DISK_HIDDEN_FOLDER = attack("_attack()", top=r'''
 def _attack():
-    """The folder the sandbox covers to hide a copy of the solutions: what covers it, can it be written?"""
+    """The folder of a copy of the solutions on the grader's import path: is it there, can it be written?"""
     folder, written = _CTX["hidden"], 0
     for number in range(8):
         with open(f"{folder}/fill{number}", "wb") as file:
@@ -680,7 +680,8 @@ ATTACKS = {
     "disk_huge_file": (DISK_HUGE_FILE, fault("exception", "Read-only file system")),
     "disk_fill": (DISK_FILL, AS_STARTER),
     "disk_many_files": (DISK_MANY_FILES, fault("exception", "Read-only file system")),
-    "disk_hidden_folder": (DISK_HIDDEN_FOLDER, fault("exception", "Read-only file system")),
+    "disk_hidden_folder": (DISK_HIDDEN_FOLDER, fault("exception", "No such file or directory",
+                                                     "Read-only file system")),
     "flood_output": (FLOOD, AS_STARTER),
     "memory_hoard": (MEMORY_HOARD, fault("memory", "memory limit")),
     "memory_caught": (MEMORY_CAUGHT, AS_STARTER),
