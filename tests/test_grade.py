@@ -144,7 +144,6 @@ def test_monkeypatching_the_checks_and_printing_fake_results_change_nothing(grad
     ("ivan", "ex1", "exception", "os.fork()"),
     ("ivan", "ex2", "exception", "Operation not permitted"),
     ("ivan", "ex3", "exception", "socket.create_connection"),
-    ("mia", "ex3", "station", "MESSAGE_ID1 = 0x160 is not a station's"),
 ])
 def test_each_fault_is_zero_marks_with_what_it_was(graded, name, ex, fault, words):
     _, records, _ = graded
@@ -182,6 +181,21 @@ def test_the_station_is_decided_from_the_firmware_as_loaded_as_check_decides_it(
         local = check(ex, base / "class" / "mia" / EXERCISE_FILES[ex], seed=SEED)
         assert [(c.name, c.passed) for c in local.checks] == [(c["name"], c["passed"]) for c in result["checks"]]
     assert "MESSAGE_ID1 = 0x088" in first_message(records, "mia", "ex1")
+
+
+def test_an_identifier_of_no_station_costs_only_the_checks_that_depend_on_the_station(graded):
+    """Ex3 with MESSAGE_ID1 = 0x160: its board takes station 1's place; receiving, the LCD and the filters are judged
+    as for any station, and the one check of what it sends fails, in its own names (it used to get 0/5)."""
+    base, records, _ = graded
+    result = exercise(records, "mia", "ex3")
+    assert result["fault"] is None and result["score"] == result["max_score"] - 1
+    [failed] = [c for c in result["checks"] if not c["passed"]]
+    assert failed["name"] == "keeps sending MESSAGE_ID1 on Timer1"
+    assert failed["message"].startswith("MESSAGE_ID1 = 0x160 is not a station's identifier: the classroom's stations "
+                                        "use 0x100, 0x110 ... 0x150")
+    assert "Otherwise right" in failed["message"] and "0x160 DATA 01 02 03" in failed["message"]
+    local = check("ex3", base / "class" / "mia" / "ex3.py", seed=SEED).to_dict()
+    assert local["checks"][1:] == result["checks"][1:] and local["fault"] is None
 
 
 def test_standard_library_imports_work_as_in_appsim_check(graded):
