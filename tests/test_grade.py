@@ -369,12 +369,18 @@ def test_a_path_that_holds_no_class_is_named_with_what_a_submission_should_hold(
     assert str(path) in str(error.value) and "ex1.py" in str(error.value)
 
 
-def test_two_submissions_of_one_name_are_refused_naming_both(tmp_path):
+def test_two_submissions_of_one_name_are_each_graded_under_a_name_of_their_own(tmp_path):
+    """A folder alice/ and an upload alice.zip (a classmate's, named after her): neither takes the name from the other,
+    each record says where it came from, and a second run gives them the same names (so it resumes)."""
     small_class(tmp_path / "class", ("alice",))
     with zipfile.ZipFile(tmp_path / "class" / "alice.zip", "w") as archive:
-        archive.writestr("ex1.py", SOLUTION_EX1)
-    with pytest.raises(GradeError, match="two submissions are named 'alice'"):
-        find_submissions([tmp_path / "class"])
+        archive.writestr("ex1.py", STARTER_EX1)
+    found = find_submissions([tmp_path / "class"])
+    names = [s.name for s in found]
+    assert len(names) == 2 and all(n.startswith("alice~") for n in names) and len(set(names)) == 2
+    assert all("2 submissions would be named 'alice'" in s.note for s in found)
+    assert {s.origin for s in found} == {"class/alice", "class/alice.zip"}
+    assert [s.name for s in find_submissions([tmp_path / "class"])] == names
 
 
 def test_ctrl_c_ends_with_one_line_exit_130_and_keeps_what_was_graded(tmp_path):

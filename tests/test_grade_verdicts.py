@@ -35,9 +35,9 @@ def firmwares() -> dict[str, tuple[str, str]]:
     return found
 
 
-# Legal but odd: what the sandbox once judged otherwise than `appsim check` (an IntEnum station was station 1, a 2 MB LCD
-# text broke the protocol, a station-less identifier scored 0), or what a check once crashed on (a bus the master's
-# 0x088 never got through).
+# Legal but odd: what the sandbox once judged otherwise than `appsim check` (an IntEnum station was station 1, a 2 MB
+# LCD text broke the protocol, a station-less identifier scored 0), or what a check once crashed on (a bus the
+# master's 0x088 never got through).
 ENUM = "import enum\n\n\nclass Station(enum.IntEnum):\n    ONE = 0x100\n    FOUR = 0x130\n\n\n"
 INDEX = "class Four:\n    def __index__(self):\n        return 0x120\n\n\n"
 ODD = {
@@ -53,7 +53,8 @@ ODD = {
                                                                        "[0] * 3_000_000")]),
     "bus_hog_ex4": ("ex4", [("def main():\n", "def main():\n    CANInitialize(4, 10, 8, 4, 3, "
                                                 "CAN_CONFIG_VALID_STD_MSG)\n    while True:\n        "
-                                                "CANSendMessage(0, [0] * 8, 8, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME)\n")]),
+                                                "CANSendMessage(0, [0] * 8, 8, CAN_TX_PRIORITY_0 & "
+                                                "CAN_TX_STD_FRAME)\n")]),
 }
 
 

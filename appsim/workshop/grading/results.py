@@ -201,9 +201,9 @@ def summary_line(record: Record) -> str:
     return f"{printable(record['submission']):<24} {record['score']:>3}/{record['max_score']:<3}  " + "  ".join(parts)
 
 
-def record_of(name: str, digest: str, seed: int, kit: str, exercises: Mapping[str, Record]) -> Record:
+def record_of(name: str, digest: str, seed: int, kit: str, exercises: Mapping[str, Record], origin: str = "") -> Record:
     ordered = {exercise: exercises[exercise] for exercise in EXERCISES}
-    return {"submission": name, "hash": digest, "seed": seed, "kit": kit,
+    return {"submission": name, "origin": origin, "hash": digest, "seed": seed, "kit": kit,
             "score": sum(e["score"] for e in ordered.values()),
             "max_score": sum(e["max_score"] for e in ordered.values()),
             "exercises": ordered}
