@@ -159,9 +159,8 @@ def isolation(secrets: Iterable[Path] = ()) -> Isolation:
     except mounts.LayoutError as error:
         raise SandboxUnavailable(f"the sandbox cannot be given the firmware library: {error}") from None
     finally:
-        if started is not None and started.poll() is None:
-            started.kill()
-            started.communicate()
+        if started is not None:
+            mounts.stop(started)
     return Isolation(bwrap, **dataclasses.asdict(layout))
 
 

@@ -24,11 +24,12 @@ MAX_COPIED = 64 << 20               # what a sandbox may be given in copies, in 
 SYSTEM_LINKS = ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32")    # merged-/usr systems make them links
 SYSTEM_FILES = ("/etc/ld.so.cache", "/etc/localtime")
 PROBE_S = 60.0
-# The probe: the zygote's boot (`child.boot`, the one place that says what the firmware library loads) in a Python
-# like the zygote's, then every extension module of the runtime (so that their libraries are bound too), and it says
-# what it imported and what it mapped.
+# The probe: a Python like the zygote's boots as a zygote does (`child.boot`, the one place that says what the firmware
+# library loads) and says what it imported and what it mapped. The libraries the runtime's extension modules need are
+# read from their ELF headers, as the dynamic loader would find them (`_needed_folders`).
 PROBE = ("import json, sys; runtime = list(sys.path); sys.path[:0] = json.loads(sys.argv[1]); "
          "from appsim.workshop.sandbox.mounts import probe; probe(runtime)")
+LOADER_DEFAULTS = ("/lib64", "/usr/lib64", "/lib", "/usr/lib")
 
 
 class LayoutError(Exception):
@@ -69,11 +70,17 @@ def search_path() -> list[str]:
 
 
 def start_probe() -> subprocess.Popen[str]:
-    """The probe, started (it takes about 0.1 s: `layout` waits for it)."""
+    """The probe, started (it takes about 0.05 s: `layout` waits for it)."""
     path = [str(kit_package().parent), *search_path()]
     return subprocess.Popen([executable(), "-I", "-S", "-B", "-c", PROBE, json.dumps(path)], cwd="/",
                             env={"PATH": "/usr/bin:/bin", "LANG": "C.UTF-8"}, stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def stop(started: subprocess.Popen[str]) -> None:
+    if started.poll() is None:
+        started.kill()
+    started.communicate()
 
 
 def layout(started: subprocess.Popen[str], secrets: Iterable[Path] = ()) -> Layout:
@@ -82,8 +89,7 @@ def layout(started: subprocess.Popen[str], secrets: Iterable[Path] = ()) -> Layo
     try:
         out, err = started.communicate(timeout=PROBE_S)
     except subprocess.TimeoutExpired:
-        started.kill()
-        started.communicate()
+        stop(started)
         raise LayoutError(f"loading the firmware library took more than {PROBE_S:g} s") from None
     if started.returncode != 0:
         raise LayoutError(f"the firmware library does not load in a Python of its own: {err.strip()[-2000:]}")
@@ -92,28 +98,16 @@ def layout(started: subprocess.Popen[str], secrets: Iterable[Path] = ()) -> Layo
 
 
 def probe(runtime: list[str]) -> None:
-    """In the probe's process: boot as a zygote does, load the runtime's extension modules, say what it took."""
+    """In the probe's process: boot as a zygote does, say what it imported and what it mapped."""
     from appsim.workshop.sandbox import child
 
     child.boot()
-    suffixes = tuple(importlib.machinery.EXTENSION_SUFFIXES)
-    for folder in runtime:
-        try:
-            names = os.listdir(folder)
-        except OSError:
-            continue
-        for name in sorted(names):
-            if name.endswith(suffixes):
-                try:
-                    importlib.import_module(name.split(".", 1)[0])
-                except Exception:       # a library this machine lacks: that module cannot work anyway
-                    pass
     modules = sorted({file for module in list(sys.modules.values())
                       if isinstance(file := getattr(module, "__file__", None), str)})
     with open("/proc/self/maps") as maps:
-        mapped = sorted({fields[5] for line in maps if len(fields := line.split(maxsplit=5)) == 6
+        mapped = sorted({fields[5].rstrip("\n") for line in maps if len(fields := line.split(maxsplit=5)) == 6
                          and fields[5].startswith("/") and not fields[5].rstrip().endswith("(deleted)")})
-    print(json.dumps({"runtime": runtime, "modules": modules, "mapped": [m.rstrip("\n") for m in mapped]}))
+    print(json.dumps({"runtime": runtime, "modules": modules, "mapped": mapped}))
 
 
 # ====================================================================== from what the probe saw to the sandbox's files
@@ -141,11 +135,109 @@ def _layout(runtime: Sequence[str], modules: Sequence[str], mapped: Sequence[str
         if not _installed(entry, top):
             raise LayoutError(f"the firmware library imports {top} from {entry}, where no installed package holds "
                               f"it (no .dist-info or .egg-info names it): install it with pip")
+    suffixes = tuple(importlib.machinery.EXTENSION_SUFFIXES)
+    extensions = [str(folder / name) for folder in runtime_dirs for name in _listing(folder) if name.endswith(suffixes)]
+    binds |= _needed_folders([python, *extensions, *(m for m in mapped if ".so" in Path(m).name)])
     binds |= {Path(f) for f in SYSTEM_FILES if os.path.exists(f)}
     chosen = _outermost(binds)
     return Layout(python, tuple(sorted(map(str, chosen))), tuple(_links(python, chosen)),
                   tuple(sorted(map(str, _covered(chosen, runtime_dirs, kit, secrets)))),
                   tuple(_copies(kit, packages)))
+
+
+def _listing(folder: Path) -> list[str]:
+    try:
+        return sorted(os.listdir(folder))
+    except OSError:
+        return []
+
+
+def _needed_folders(objects: Iterable[str]) -> set[Path]:
+    """The folders of the shared libraries the ELF files `objects` need, and those need in turn, where the dynamic
+    loader would find them: their RUNPATH (or RPATH), then /etc/ld.so.conf's folders, then the defaults."""
+    search = _loader_folders()
+    folders: set[Path] = set()
+    seen: set[str] = set()
+    waiting = [os.path.realpath(o) for o in objects]
+    while waiting:
+        path = waiting.pop()
+        if path in seen:
+            continue
+        seen.add(path)
+        needed, runpath = _dynamic(path)
+        origin = os.path.dirname(path)
+        where = [d.replace("${ORIGIN}", origin).replace("$ORIGIN", origin) for d in runpath] + search
+        for name in needed:
+            found = next((os.path.join(d, name) for d in where if os.path.exists(os.path.join(d, name))), None)
+            if found is not None:
+                real = os.path.realpath(found)
+                folders |= {Path(os.path.realpath(os.path.dirname(found))), Path(real).parent}
+                waiting.append(real)
+    return folders
+
+
+@functools.lru_cache(maxsize=1)
+def _loader_folders() -> list[str]:
+    """The dynamic loader's folders: /etc/ld.so.conf's (and those it includes), then its defaults."""
+    import glob
+
+    found: list[str] = []
+
+    def read(conf: str, depth: int = 0) -> None:
+        try:
+            lines = Path(conf).read_text(errors="replace").splitlines()
+        except OSError:
+            return
+        for line in lines:
+            line = line.split("#", 1)[0].strip()
+            if line.startswith("include ") and depth < 8:
+                for included in sorted(glob.glob(os.path.join(os.path.dirname(conf), line.split(None, 1)[1]))):
+                    read(included, depth + 1)
+            elif line.startswith("/"):
+                found.append(line)
+    read("/etc/ld.so.conf")
+    return [d for d in dict.fromkeys([*found, *LOADER_DEFAULTS]) if os.path.isdir(d)]
+
+
+def _dynamic(path: str) -> tuple[list[str], list[str]]:
+    """A 64-bit ELF file's DT_NEEDED names and its RUNPATH (else RPATH) folders; nothing for anything else."""
+    try:
+        with open(path, "rb") as file:
+            data = file.read(64 << 20)
+    except OSError:
+        return [], []
+    if data[:4] != b"\x7fELF" or len(data) < 64 or data[4] != 2:
+        return [], []
+    order = "<" if data[5] == 1 else ">"
+    try:
+        phoff, = struct.unpack_from(order + "Q", data, 32)
+        phentsize, phnum = struct.unpack_from(order + "HH", data, 54)
+        loads, dynamic = [], None
+        for number in range(phnum):
+            kind, _, offset, vaddr, _, size = struct.unpack_from(order + "IIQQQQ", data, phoff + number * phentsize)
+            if kind == 1:                                   # PT_LOAD
+                loads.append((vaddr, offset, size))
+            elif kind == 2:                                 # PT_DYNAMIC
+                dynamic = (offset, size)
+        if dynamic is None:
+            return [], []
+        entries = []
+        for position in range(dynamic[0], dynamic[0] + dynamic[1], 16):
+            tag, value = struct.unpack_from(order + "qQ", data, position)
+            if tag == 0:
+                break
+            entries.append((tag, value))
+        table = next(value for tag, value in entries if tag == 5)                 # DT_STRTAB, an address
+        strings = next(offset + table - vaddr for vaddr, offset, size in loads if vaddr <= table < vaddr + size)
+
+        def text(at: int) -> str:
+            return data[strings + at:data.index(b"\0", strings + at)].decode(errors="replace")
+        needed = [text(value) for tag, value in entries if tag == 1]             # DT_NEEDED
+        runpath = [text(value) for tag, value in entries if tag == 29] or \
+            [text(value) for tag, value in entries if tag == 15]                 # DT_RUNPATH, else DT_RPATH
+    except (struct.error, StopIteration, ValueError):
+        return [], []
+    return needed, [d for entry in runpath for d in entry.split(":") if d]
 
 
 def _outermost(paths: Iterable[Path]) -> list[Path]:
@@ -204,6 +296,8 @@ def _covered(binds: Sequence[Path], runtime: Sequence[Path], kit: Path, secrets:
                   *(site.getsitepackages() if hasattr(site, "getsitepackages") else []),
                   site.getusersitepackages(), *os.environ.get("PYTHONPATH", "").split(os.pathsep), *map(str, secrets)]
     candidates += [str(folder / name) for folder in runtime for name in ("site-packages", "dist-packages")]
+    candidates += [str(bound / python / name) for bound in binds for python in _listing(bound)
+                   if python.startswith("python") for name in ("site-packages", "dist-packages")]
     covered = set()
     for candidate in candidates:
         if not candidate or not os.path.exists(candidate):
