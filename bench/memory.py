@@ -28,7 +28,7 @@ _ECAN = ("ECAN = range(0xF00, 0xF78)\n"
 _FAST_LOOPBACK = "CANSetOperationMode(CAN_OP_MODE_CONFIG)\nSFR.BRGCON1 = 0\nSFR.BRGCON2 = 0x80\nSFR.BRGCON3 = 0\n"
 # Firmware that makes the grader keep as much as it can, each graded as one exercise (the longest, Demo1: 1 s).
 HOGS: dict[str, tuple[str, str]] = {
-    # a filter written in Normal mode: the silicon ignores it, and the ECAN used to keep every one (346 MB)
+    # a filter written in Normal mode: the silicon ignores it, and the ECAN used to keep every one (+346 MB)
     "ignored writes": ("demo1", _firmware("while True:\n    SFR.RXF0SIDH = 0x55")),
     # every ECAN register, in every mode, with ever other values
     "every register, every mode": ("demo1", _firmware(
@@ -45,7 +45,7 @@ HOGS: dict[str, tuple[str, str]] = {
                                         "CANSetOperationMode(CAN_OP_MODE_NORMAL)\nwhile True:\n"
                                         "    CANSendMessage(0x000, [0x55] * 8, 8, CAN_TX_PRIORITY_0 & "
                                         "CAN_TX_STD_FRAME)")),
-    # Timer1 restarted forever: each write cancels its overflow (cancelled events used to pile up, 357 MB)
+    # Timer1 restarted forever: each write cancels its overflow (cancelled events used to pile up: +11.5 MB)
     "Timer1 restarted": ("demo1", _firmware("OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_8 & "
                                             "T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)\nwhile True:\n    WriteTimer1(0)")),
     # the USART at its fastest, a byte on every turn
