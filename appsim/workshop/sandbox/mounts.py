@@ -200,43 +200,48 @@ def _loader_folders() -> list[str]:
 
 
 def _dynamic(path: str) -> tuple[list[str], list[str]]:
-    """A 64-bit ELF file's DT_NEEDED names and its RUNPATH (else RPATH) folders; nothing for anything else."""
+    """A 64-bit ELF file's DT_NEEDED names and its RUNPATH (else RPATH) folders; nothing for anything else. Only its
+    headers, its dynamic section and its string table are read."""
     try:
         with open(path, "rb") as file:
-            data = file.read(64 << 20)
-    except OSError:
+            header = file.read(64)
+            if len(header) < 64 or header[:4] != b"\x7fELF" or header[4] != 2:
+                return [], []
+            order = "<" if header[5] == 1 else ">"
+            phoff, = struct.unpack_from(order + "Q", header, 32)
+            phentsize, phnum = struct.unpack_from(order + "HH", header, 54)
+            file.seek(phoff)
+            table = file.read(phentsize * phnum)
+            loads, dynamic = [], None
+            for number in range(phnum):
+                kind, _, offset, vaddr, _, size = struct.unpack_from(order + "IIQQQQ", table, number * phentsize)
+                if kind == 1:                                   # PT_LOAD
+                    loads.append((vaddr, offset, size))
+                elif kind == 2:                                 # PT_DYNAMIC
+                    dynamic = (offset, size)
+            if dynamic is None:
+                return [], []
+            file.seek(dynamic[0])
+            section = file.read(min(dynamic[1], 1 << 20))
+            entries = []
+            for position in range(0, len(section) - 15, 16):
+                tag, value = struct.unpack_from(order + "qQ", section, position)
+                if tag == 0:
+                    break
+                entries.append((tag, value))
+            found = dict(entries)
+            address, size = found[5], found[10]                 # DT_STRTAB (an address), DT_STRSZ
+            file.seek(next(offset + address - vaddr for vaddr, offset, length in loads
+                           if vaddr <= address < vaddr + length))
+            strings = file.read(min(size, 16 << 20))
+    except (OSError, struct.error, StopIteration, KeyError):
         return [], []
-    if data[:4] != b"\x7fELF" or len(data) < 64 or data[4] != 2:
-        return [], []
-    order = "<" if data[5] == 1 else ">"
-    try:
-        phoff, = struct.unpack_from(order + "Q", data, 32)
-        phentsize, phnum = struct.unpack_from(order + "HH", data, 54)
-        loads, dynamic = [], None
-        for number in range(phnum):
-            kind, _, offset, vaddr, _, size = struct.unpack_from(order + "IIQQQQ", data, phoff + number * phentsize)
-            if kind == 1:                                   # PT_LOAD
-                loads.append((vaddr, offset, size))
-            elif kind == 2:                                 # PT_DYNAMIC
-                dynamic = (offset, size)
-        if dynamic is None:
-            return [], []
-        entries = []
-        for position in range(dynamic[0], dynamic[0] + dynamic[1], 16):
-            tag, value = struct.unpack_from(order + "qQ", data, position)
-            if tag == 0:
-                break
-            entries.append((tag, value))
-        table = next(value for tag, value in entries if tag == 5)                 # DT_STRTAB, an address
-        strings = next(offset + table - vaddr for vaddr, offset, size in loads if vaddr <= table < vaddr + size)
 
-        def text(at: int) -> str:
-            return data[strings + at:data.index(b"\0", strings + at)].decode(errors="replace")
-        needed = [text(value) for tag, value in entries if tag == 1]             # DT_NEEDED
-        runpath = [text(value) for tag, value in entries if tag == 29] or \
-            [text(value) for tag, value in entries if tag == 15]                 # DT_RUNPATH, else DT_RPATH
-    except (struct.error, StopIteration, ValueError):
-        return [], []
+    def text(at: int) -> str:
+        return strings[at:strings.find(b"\0", at)].decode(errors="replace")
+    needed = [text(value) for tag, value in entries if tag == 1]                 # DT_NEEDED
+    runpath = [text(value) for tag, value in entries if tag == 29] or \
+        [text(value) for tag, value in entries if tag == 15]                     # DT_RUNPATH, else DT_RPATH
     return needed, [d for entry in runpath for d in entry.split(":") if d]
 
 
