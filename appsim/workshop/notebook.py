@@ -316,7 +316,8 @@ class Station:
             master = "the master's first 0x088" if event is first else ""
             return f"ACKed {master or 'it'}" if name in event.acked_by else master
 
-        return TraceTable([first, *(e for e in before if e is not first)], self.nodes, column=(f"{name}", what))
+        return TraceTable([*([first] if first is not None else []), *(e for e in before if e is not first)],
+                          self.nodes, column=(f"{name}", what))
 
     @_after_a_run
     def wire_bits(self, *, loopback: bool = False) -> Figure | Note:

@@ -4,6 +4,7 @@ Firmware reads and writes registers; the wire calls the event methods (`appsim.b
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -44,6 +45,7 @@ _RXF_OF = {"RXB0": (0, 1), "RXB1": (2, 3, 4, 5)}
 _MASK_OF = {"RXB0": 0, "RXB1": 1}
 
 # What a CPU access to each address does, decided once from the register map rather than on every access.
+IGNORED_KEPT = 64                        # ignored writes the module keeps to show (ECAN.ignored_writes)
 _CONFIGURATION = Mode.CONFIGURATION      # an enum member is slow to look up on its class (CPython 3.11)
 _PLAIN, _PROTECTED, _CANSTAT, _COMSTAT, _TXERRCNT, _RXERRCNT, _UNMAPPED = range(7)
 
@@ -85,7 +87,10 @@ class ECAN(ErrorCounters):
         self.wire: Wire | None = None
         self.changed = changed
         self.mode_change_aborts_tx = mode_change_aborts_tx
-        self.ignored_writes: list[tuple[str, int]] = []
+        # Writes the silicon ignored (a filter outside Configuration mode, a TX buffer while TXREQ = 1), as (register,
+        # value): the latest IGNORED_KEPT of them, and how many in all (a loop may make millions).
+        self.ignored_writes: deque[tuple[str, int]] = deque(maxlen=IGNORED_KEPT)
+        self.ignored_count = 0
         self.reset()
 
     # ----------------------------------------------------------------- reset and state
@@ -157,14 +162,14 @@ class ECAN(ErrorCounters):
         if reg is None:
             return
         if (reg.protected or reg.locked) and self.opmode != _CONFIGURATION:
-            self.ignored_writes.append((reg.name, value & 0xFF))
+            self._ignored(reg.name, value)
             return
         index = address - 0xF00
         old = self._sfr[index]
         lock = _TXREQ_LOCK.get(address)
         if lock is not None:
             if self._sfr[lock] & R.TXREQ:
-                self.ignored_writes.append((reg.name, value & 0xFF))   # locked while TXREQ = 1
+                self._ignored(reg.name, value)     # locked while TXREQ = 1
                 return
             self._tx_frames.pop(lock, None)
         new = (old & ~reg.writable & 0xFF) | (value & reg.writable)
@@ -174,6 +179,10 @@ class ECAN(ErrorCounters):
             self._acceptance = None
         if address in _SIDE_EFFECTS:
             self._after_write(reg.name, old, new)
+
+    def _ignored(self, name: str, value: int) -> None:
+        self.ignored_writes.append((name, value & 0xFF))
+        self.ignored_count += 1
 
     def _windowed(self, address: int) -> int:
         if _WINDOW_FIRST <= address - 0xF00 <= _WINDOW_LAST:
