@@ -127,8 +127,9 @@ def test_the_mount_table_names_none_of_the_grader_s_folders(tmp_path):
     from test_grade import _graded_alone, firmware
 
     import appsim
-    secret_places = [Path(appsim.__file__).resolve().parent.parent, Path(sys.prefix).resolve(), tmp_path.resolve(),
-                     Path.cwd().resolve()]
+    secret_places = [Path(appsim.__file__).resolve().parent.parent, tmp_path.resolve(), Path.cwd().resolve()]
+    if sys.prefix != sys.base_prefix:
+        secret_places.append(Path(sys.prefix).resolve())     # the venv (outside one, the prefix is the runtime's own)
     looking = firmware("with open('/proc/self/mountinfo') as table:\n    seen = table.read()\n"
                        f"for place in {[str(p) for p in secret_places]!r}:\n"
                        "    if place in seen:\n        raise RuntimeError('the mount table names ' + place)\n"
@@ -193,3 +194,20 @@ def test_bytecode_is_copied_only_where_it_is_this_very_source_s(tmp_path):
     os.utime(source, (1, 1))
     mounts.contents.cache_clear()
     assert len(mounts.contents(((str(source), "/kit/module.py"),))) == 1
+
+
+def test_a_package_in_a_site_packages_inside_the_standard_library_s_folder_is_copied(tmp_path, monkeypatch):
+    """pyenv's Pythons, and any built from source, keep site-packages inside lib/python3.X, the standard library's
+    folder the sandbox binds (with its site-packages covered): a package the firmware library imports from there is
+    copied in like any other. (Found grading with pyenv's Python: every exercise was the grader's fault, 'No module
+    named greenlet' in the sandbox.)"""
+    stdlib = tmp_path / "home" / "lib" / "python3.11"
+    site = stdlib / "site-packages"
+    (site / "greenlet").mkdir(parents=True)
+    (site / "greenlet" / "__init__.py").write_text("")
+    (site / "greenlet-3.0.dist-info").mkdir()
+    (site / "greenlet-3.0.dist-info" / "RECORD").write_text("greenlet/__init__.py,sha256=x,0\n")
+    monkeypatch.setattr(sys, "path", [sys.path[0], str(site), *sys.path[1:]])
+    walls = mounts._layout([str(stdlib)], [str(site / "greenlet" / "__init__.py")], [], [])
+    assert (str(site / "greenlet" / "__init__.py"), f"{mounts.SITE_FOLDER}/greenlet/__init__.py") in walls.copies
+    assert str(stdlib) in walls.binds and str(site) in walls.covered

@@ -121,11 +121,16 @@ def _layout(runtime: Sequence[str], modules: Sequence[str], mapped: Sequence[str
     packages: set[tuple[Path, str]] = set()
     for name in [*modules, *mapped]:
         real = Path(os.path.realpath(name))
-        if real == Path(python) or _inside(real, runtime_dirs) or _inside(real, [kit]):
+        if real == Path(python) or _inside(real, [kit]):
             continue
         entry = max((e for e in entries if _inside(real, [e]) and real != e), key=lambda e: len(e.parts), default=None)
-        if entry is not None:
+        home = max((d for d in runtime_dirs if _inside(real, [d])), key=lambda d: len(d.parts), default=None)
+        if entry is not None and (home is None or len(entry.parts) > len(home.parts)):
+            # an installed package, also where site-packages lies inside the standard library's folder (pyenv, a
+            # Python built from source): that folder is covered in the sandbox, so the package is copied
             packages.add((entry, real.relative_to(entry).parts[0]))
+        elif home is not None:
+            continue
         elif name in mapped:
             binds.add(real.parent if ".so" in real.name else real)     # a library's folder; a data file alone
         else:
