@@ -48,6 +48,8 @@ class Peripheral(Protocol):
 
 
 READ_AHEAD_MAX_PS = 1 << 62           # a horizon with no event ahead
+POLLING_SITES = 1024                  # (register, call site) a polling loop's reads are told apart by, at most: reads
+                                      # from further sites (a deep recursion's) never park, they only cost time
 
 
 def _reads_zero(address: int) -> int:
@@ -156,9 +158,10 @@ class PIC18F8680(SFRNames):
             return
         if address in self.read_side_effects:
             self._polled_pure = False
-        site = (address, firmware_location() if site is None else site)
+        site = (address, hash(firmware_location()) if site is None else site)
         if site not in self._polled_sites:
-            self._polled_sites.add(site)
+            if len(self._polled_sites) < POLLING_SITES:
+                self._polled_sites.add(site)
             return
         self._parked_on = self._polled if self._polled_pure else None
         process.park()

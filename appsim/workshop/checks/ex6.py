@@ -59,7 +59,8 @@ def run(trial: Trial) -> list[CheckResult]:
     other_id = next(station_ids(k)["MESSAGE_ID1"] for k in room.stations if k != trial.station)
     trial.node("tester", test_node(trial.own_id, other_id))
     trial.run(SECONDS)
-    joined = master_frames(trial)[0].end_ps               # Listen-only until then, as in Ex4
+    broadcasts = master_frames(trial)
+    joined = broadcasts[0].end_ps if broadcasts else 0     # Listen-only until then, as in Ex4
     frames = [e for e in trial.bus.frames() if e.sender != trial.name and e.end_ps > joined]
     polls = [e for e in frames if e.frame.remote and e.frame.can_id == trial.own_id]
     mine = trial.sent()

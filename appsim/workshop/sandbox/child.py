@@ -17,6 +17,7 @@ from typing import Any
 from appsim import errors
 from appsim.chip.sfr import ADDRESSES, RUNNING_MCU, SFRNames, firmware_entry, firmware_location
 from appsim.errors import FirmwareError
+from appsim.firmware.identity import identity_of
 from appsim.firmware.loader import crash_message, load_source
 from appsim.workshop.sandbox import protocol as wire
 from appsim.workshop.sandbox.protocol import Channel
@@ -159,8 +160,9 @@ class RemoteDisplay:
                                                 max(-clamp, min(column, clamp))))
 
     def write(self, codes: list[int]) -> None:
-        codes = codes[:0xFFFF]          # the screen shows 21 of them; the rest only moves the cursor further out
-        self._mcu.display(wire.TEXT_HEAD.pack(wire.DISPLAY, wire.TEXT, len(codes)) + bytes(codes))
+        shown = codes[:wire.TEXT_SHOWN]     # the screen shows 21 of them at most; the rest only moves the cursor on
+        self._mcu.display(wire.TEXT_HEAD.pack(wire.DISPLAY, wire.TEXT, min(len(codes), wire.TEXT_LENGTH_MAX),
+                                              len(shown)) + bytes(shown))
 
 
 def _address(address: int) -> int:
@@ -217,11 +219,11 @@ def main(settings: dict[str, Any], read_fd: int, write_fd: int) -> None:
     except FirmwareError as error:
         mcu.report(wire.LOAD_FAILED, str(error))
         return
-    identity = {}
-    for name in ("MESSAGE_ID1", "RTR_ID"):              # what it calls itself: integers only (see checks.trial)
-        value = getattr(module, name, None)
-        if type(value) is int and -wire.IDENTITY_LIMIT < value < wire.IDENTITY_LIMIT:
-            identity[name] = value
+    try:
+        identity = identity_of(module)                  # what it calls itself, read as `appsim check` reads it
+    except BaseException as error:                      # its module's own __getattr__ ran, and raised
+        mcu.report(wire.LOAD_FAILED, crash_message(error, str(path)))
+        return
     mcu.report(wire.LOADED, json.dumps(identity))
     go = channel.receive()
     if go is None or go[:1] != wire.GO:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import signal
 import time
 
+from appsim.board.glcd import GLCD
 from appsim.chip.mcu import PIC18F8680
 from appsim.chip.sfr import current_mcu
 from appsim.errors import SandboxUnavailable
@@ -57,6 +58,7 @@ class SandboxedFirmware:
         self._after_addresses: tuple[int, ...] = ()
         self._after_version = -1
         self._took: dict[int, int] | None = None
+        self._took_version = -1         # the board's version right after that write
 
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
@@ -179,6 +181,7 @@ class SandboxedFirmware:
                     elif op is wire.WRITE:
                         self._took = self._taken(mcu, first)
                         mcu.write(first, second)
+                        self._took_version = mcu.version
                     elif op is wire.SPEND:
                         mcu.spend_cycles(first)
                     else:
@@ -221,14 +224,19 @@ class SandboxedFirmware:
     def _replay(self, mcu: PIC18F8680, address: int, site: int, used: int) -> None:
         """A read the child answered from its read-ahead, done on the board as it would have been asked: it must
         neither park nor hand over, and must give what the child used. The read-ahead allows nothing else, so a
-        served read that does is not one (a ProtocolError); checks and grade agreeing is tested on every solution."""
+        served read that does is not one (a ProtocolError); checks and grade agreeing is tested on every solution.
+        Only a value the read-ahead foretold after a write, read with nothing changed on the board since that write,
+        can be the grader's mistake: a child that spent past its budget, or read on after another access, broke the
+        protocol, whatever value it claims."""
         process = mcu.process
         assert process is not None
         expected = process.local_time + mcu.access_ps
+        version = mcu.version
         value = mcu.read(address, site)
         self._recent(address)
         if value != used or process.local_time != expected:
-            if self._took is not None and self._took.get(address) == used:
+            if (self._took is not None and self._took.get(address) == used and version == self._took_version
+                    and process.local_time == expected):
                 raise RuntimeError(f"its read-ahead said register 0x{address:03X} would read {used} after a write, "
                                    f"where the board reads {value} (a mistake of the simulator's, not the firmware's)")
             raise ProtocolError(f"a read of register 0x{address:03X} it answered itself with {used}, where the "
@@ -333,5 +341,7 @@ def _display(mcu: PIC18F8680, op: bytes, first: int, second: int, codes: bytes) 
         display.initial()
     elif op == wire.DISPLAY_CURSOR:
         display.set_cursor(first, second)
+    elif isinstance(display, GLCD):
+        display.write(list(codes), length=first)    # the first codes of `first`: all the screen can show
     else:
         display.write(list(codes))

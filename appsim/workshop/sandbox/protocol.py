@@ -9,6 +9,8 @@ import json
 import os
 import struct
 
+from appsim.firmware.identity import LIMIT as identity_limit
+
 LENGTH = struct.Struct("<I")
 MAX_FROM_CHILD = 64 << 10           # a batch is flushed at BATCH_BYTES; texts are cut at MAX_TEXT
 MAX_FROM_GRADER = 1 << 20           # the firmware's source, at most MAX_SOURCE
@@ -21,7 +23,8 @@ MAX_IDENTITY = 512
 # RETURNED, RAISED + text, OUT_OF_MEMORY, EXITED. Or a BATCH of accesses: WRITE address:u16 value:u8, SPEND
 # cycles:u64 and SERVED address:u16 site:i64 value:u8 (a read the child answered from its read-ahead) items, ended by
 # at most one item that waits for its answer, READ address:u16 site:i64 or DISPLAY op:u8 (INITIAL; CURSOR line:i64
-# column:i64; TEXT count:u16 codes:u8*count).
+# column:i64; TEXT length:u32 count:u16 codes:u8*count, the first `count` of the `length` codes written, count =
+# min(length, TEXT_SHOWN): the screen shows at most 21 of them, the rest only moves the cursor on).
 HELLO, LOADED, LOAD_FAILED, RETURNED, RAISED, OUT_OF_MEMORY, EXITED, BATCH = (
     b"H", b"L", b"F", b"E", b"X", b"M", b"Q", b"B")
 WRITE, SPEND, SERVED, READ, DISPLAY = b"W", b"S", b"r", b"R", b"D"
@@ -52,10 +55,11 @@ READ_ITEM = struct.Struct("<cHq")
 CURSOR_ITEM = struct.Struct("<cBqq")
 LONE_READ = BATCH + READ            # how a batch of one READ begins, the most common message by far
 LONE_READ_SIZE = 1 + READ_ITEM.size
-TEXT_HEAD = struct.Struct("<cBH")
+TEXT_HEAD = struct.Struct("<cBIH")
+TEXT_SHOWN = 64                     # codes of a text sent: appsim.board.glcd shows at most COLUMNS (21) of them
+TEXT_LENGTH_MAX = (1 << 32) - 1
 NAME_LENGTH = struct.Struct("<H")
 ADDRESSES = range(0x1000)           # the PIC18F8680's data memory: 0x000..0xFFF
-IDENTITY_LIMIT = 1 << 64            # MESSAGE_ID1 / RTR_ID values beyond this are not identifiers of anything
 
 
 class ProtocolError(Exception):
@@ -122,7 +126,7 @@ class Channel:
 # ====================================================================== what a child may say
 
 Access = tuple[bytes, int, int, int]     # (op, first, second, third argument), decoded
-# Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (count; the codes apart).
+# Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (length; the codes apart).
 DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT = b"Di", b"Dc", b"Dt"
 
 
@@ -176,9 +180,9 @@ def _display(message: bytes, position: int) -> tuple[Access, bytes]:
         _, _, line, column = CURSOR_ITEM.unpack_from(message, position)
         return (DISPLAY_CURSOR, line, column, 0), b""
     if kind == TEXT and rest >= TEXT_HEAD.size:
-        _, _, count = TEXT_HEAD.unpack_from(message, position)
-        if rest - TEXT_HEAD.size == count:
-            return (DISPLAY_TEXT, count, 0, 0), message[position + TEXT_HEAD.size:]
+        _, _, length, count = TEXT_HEAD.unpack_from(message, position)
+        if rest - TEXT_HEAD.size == count == min(length, TEXT_SHOWN):
+            return (DISPLAY_TEXT, length, 0, 0), message[position + TEXT_HEAD.size:]
     raise ProtocolError("a display operation that is not one")
 
 
@@ -199,7 +203,7 @@ def decode_identity(data: bytes) -> dict[str, int]:
     if not isinstance(identity, dict) or not set(identity) <= {"MESSAGE_ID1", "RTR_ID"}:
         raise ProtocolError("an identity with other names than MESSAGE_ID1 and RTR_ID")
     for value in identity.values():
-        if type(value) is not int or not -IDENTITY_LIMIT < value < IDENTITY_LIMIT:
+        if type(value) is not int or not -identity_limit <= value <= identity_limit:
             raise ProtocolError("an identity whose values are not integers")
     return identity
 
