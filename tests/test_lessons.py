@@ -524,6 +524,9 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "100 kbit/s": same(lambda ns: kbit(phase2_not_programmable().bit_rate(FOSC_HZ)),
                            lambda ns: in_length_tables("100 kbit/s")),
     },
+    "notebooks.md": {
+        "250 kbit/s": lambda ns: kbit(tries.BUS_RATE),
+    },
     "traces.md": {
         "3.2 ms": verdict_says("ex1", starter("ex1"), "the frame went round in Loopback mode at 3.2 ms"),
         "53.9 ms": verdict_says("ex4", solution("ex4"), "until the master's first 0x088 ended at 53.9 ms"),
