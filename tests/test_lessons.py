@@ -767,7 +767,8 @@ def test_d1_a_passive_flag_ends_its_own_senders_frame_not_another_nodes_as_00_sa
         "00_can_in_15_minutes").cells].index("40e3d1e5")].source.splitlines() if "**error-passive**" in line)
     assert "cannot destroy anyone's frame" not in row
     for words in ("cannot destroy another node's frame", "Sent by the transmitter itself, a passive flag still ends "
-                  "that frame", "except after an ACK error"):
+                  "that frame where stuffing applies", "a stuff error", "After an ACK error it falls in the recessive "
+                  "ACK delimiter and EOF instead, and the receivers keep the frame"):
         assert words in row, row
 
 
