@@ -3,7 +3,10 @@
 Where the workshop, the data sheet and the CAN standard differ, the check accepts what each allows and says why when
 it refuses; the notebook and its check judge by one definition; the lessons' tools (the mask/filter table, the
 physical layer) compute what the simulated chip does; and every number the prose states with a unit (times, bits,
-TQ, sample points, bit rates, volts, metres, TEC values from runs) is computed here from the kit and compared.
+TQ, sample points, bit rates, volts, metres, TEC values from runs) is computed here from the kit and compared. The
+second review's defects (D1..D20 of reviews/lessons-2026-12-02.md, D13 aside) each have a test that fails on the text
+they were found in: every check section lists its verdict's lines, the docs' example outputs are a real run's, and the
+tries that end notebooks 00 and 01 judge what they say they judge.
 """
 from __future__ import annotations
 
