@@ -623,7 +623,7 @@ def _attack():
 ''')
 
 # ---------------------------------------------------------------------- spin without a word to the board
-SPIN_PASS = attack("while True:\n    pass")
+SPIN_PASS = attack("_spins = 0\nwhile True:\n    _spins += 1")     # `while True: pass` waits for an interrupt
 SPIN_SLEEP = attack("_time.sleep(3600)")
 SPIN_AT_LOAD = attack("", top="while True:\n    pass\n")
 

@@ -10,7 +10,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
-from appsim.chip.interrupts import PeripheralInterrupts
+from appsim.chip.interrupts import Interrupts
 from appsim.chip.sfr import (
     ABDEN,
     ADDEN,
@@ -136,7 +136,7 @@ class USART:
     interrupts are taken (PIE1.TXIE/RCIE are stored only): firmware polls, as C18's functions do.
     """
 
-    def __init__(self, mcu: PIC18F8680, interrupts: PeripheralInterrupts):
+    def __init__(self, mcu: PIC18F8680, interrupts: Interrupts):
         self.mcu = mcu
         self.ends: dict[str, SerialEnd] = {}
         # Which end the board wires TX and RX to now (its `route`), None for nowhere: the board sets it (DSW2).

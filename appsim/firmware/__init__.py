@@ -1,15 +1,17 @@
 """What a firmware file imports: `from appsim.firmware import *`, as EX1.C includes CAN18XX8.h and p18f8680.h.
 
-The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit structs (`RXB0CONbits.RXFUL`).
+The AN738 library, every SFR by name (`SFR.CANCON = 0x80`), C18-style bit structs (`RXB0CONbits.RXFUL`) and interrupt
+routines marked as C18's pragmas mark them (`@interrupt`, `@interruptlow`).
 It acts only through the chip's SFR bus: may import appsim.chip, appsim.can, appsim.sim and appsim.errors.
 """
 from __future__ import annotations
 
 from appsim.chip.sfr import BITFIELDS, current_mcu
-from appsim.firmware import adc, an738, glcd, timers, usart
+from appsim.firmware import adc, an738, glcd, interrupts, timers, usart
 from appsim.firmware.adc import *
 from appsim.firmware.an738 import *
 from appsim.firmware.glcd import *
+from appsim.firmware.interrupts import *
 from appsim.firmware.runtime import CALL_CYCLES
 from appsim.firmware.timers import *
 from appsim.firmware.usart import *
@@ -71,5 +73,5 @@ def Delay10KTCYx(unit: int) -> None:
 SFR = _SFRs()
 globals().update({f"{register}bits": _Bits(register, fields) for register, fields in BITFIELDS.items()})
 
-__all__ = [*an738.__all__, *adc.__all__, *timers.__all__, *glcd.__all__, *usart.__all__,
+__all__ = [*an738.__all__, *adc.__all__, *timers.__all__, *glcd.__all__, *usart.__all__, *interrupts.__all__,
            "SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx", *(f"{r}bits" for r in BITFIELDS)]
