@@ -60,14 +60,23 @@ def Nop() -> None:
     current_mcu().spend_cycles(1)
 
 
+def _units(function: str, unit: int) -> int:
+    """C18's delays take an unsigned char: 1..255 units, and 0 means 256 (its loop counts down before it tests)."""
+    if not isinstance(unit, int) or isinstance(unit, bool) or not 0 <= unit <= 0xFF:
+        wrapped = f": C18 would wait {unit % 256 or 256} units (it keeps the low byte)" if isinstance(unit, int) else ""
+        raise ValueError(f"{function} takes an unsigned char, 0..255 units (0 means 256); got {unit!r}{wrapped}. "
+                         f"Call it again for longer waits")
+    return unit or 256
+
+
 def Delay1KTCYx(unit: int) -> None:
-    """Wait 1,000 x `unit` instruction cycles (C18 delays.h; 0.1 ms per unit at 40 MHz)."""
-    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * unit)
+    """Wait 1,000 x `unit` instruction cycles, as C18's delays.h does (0.1 ms per unit at 40 MHz); 0 means 256."""
+    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * _units("Delay1KTCYx", unit))
 
 
 def Delay10KTCYx(unit: int) -> None:
-    """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz)."""
-    current_mcu().spend_cycles(CALL_CYCLES + 10_000 * unit)
+    """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz); 0 means 256."""
+    current_mcu().spend_cycles(CALL_CYCLES + 10_000 * _units("Delay10KTCYx", unit))
 
 
 SFR = _SFRs()
