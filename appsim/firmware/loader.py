@@ -17,8 +17,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from types import ModuleType
 
+from appsim.chip.sfr import VECTOR_NAMES
 from appsim.errors import FirmwareError
-from appsim.firmware.interrupts import idle, routines
+from appsim.firmware.interrupts import MARK, idle, routines
 from appsim.sim import TRACEBACK_FRAMES
 
 _loads = itertools.count()
@@ -189,7 +190,23 @@ def crash_message(error: BaseException, filename: str | None) -> str:
     mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
     what = _past_the_data(error, filename) or _as_python_words_it(error, report)
-    return f"main() crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+    who = _crashed_in(error, filename)
+    return f"{who} crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+
+
+def _crashed_in(error: BaseException, filename: str | None) -> str:
+    """main(), or the interrupt routine the error came from (innermost: a routine may interrupt main's calls)."""
+    frames = []
+    tb = error.__traceback__
+    while tb is not None:
+        frames.append(tb.tb_frame)
+        tb = tb.tb_next
+    for frame in reversed(frames):
+        function = frame.f_globals.get(frame.f_code.co_name) if frame.f_code.co_filename == filename else None
+        vector = getattr(function, MARK, None) if getattr(function, "__code__", None) is frame.f_code else None
+        if vector in VECTOR_NAMES:
+            return f"{frame.f_code.co_name}(), {VECTOR_NAMES[vector]},"
+    return "main()"
 
 
 def _as_python_words_it(error: BaseException, report: traceback.TracebackException) -> str:
