@@ -471,7 +471,8 @@ def test_a_sandbox_left_waiting_past_its_boot_time_costs_the_next_student_nothin
 def test_each_exercise_of_a_submission_runs_in_a_fresh_process_of_its_sandbox():
     """A submission's exercises share its sandbox, one fresh process each: what one firmware leaves in its own process
     (a patched library) is gone for the next, as it is in `appsim check`."""
-    patcher = firmware("import appsim.firmware.an738 as an738\nan738.CANSendMessage = None\nspins = 0\nwhile True:\n    spins += 1")
+    patcher = firmware("import appsim.firmware.an738 as an738\nan738.CANSendMessage = None\nspins = 0\n"
+                       "while True:\n    spins += 1")
     source = (SOLUTIONS / EXERCISE_FILES["ex1"]).read_bytes()
     with Sandbox(isolation(), Limits(stall_s=1)) as sandbox:
         honest = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="carol")
