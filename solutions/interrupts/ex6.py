@@ -10,9 +10,11 @@ interrupt answers the master's RTR for MESSAGE_ID1 at once, and main() only keep
 How it works: after the Listen-only start (polled, as in EX4), PIE3.RXB0IE and PIE3.RXB1IE enable the two receive
 interrupts, and INTCON.PEIE and INTCON.GIE let them through (RCON.IPEN = 0: one priority, every interrupt at 0x08).
 When a frame lands in RXB0 or RXB1, the ECAN sets RXB0IF or RXB1IF, the core finishes its instruction, clears GIE
-and jumps to high_isr(). CANSTAT.ICODE names the highest-priority source pending (110 RXB0, 101 RXB1, 000 none); the
-routine takes messages until ICODE reads 000. CANReceiveMessage() clears RXFUL and the RXBnIF flag: a routine that
-left the flag set would be entered again at once, for ever. RETFIE (the routine's return) sets GIE again.
+and jumps to high_isr(). CANSTAT.ICODE names the highest-priority source pending (110 RXB0, 101 RXB1, 000 none), for
+a routine that dispatches on it; this one takes messages until neither buffer is full, which also empties a buffer
+whose flag a slow routine would see only after the next frame. CANReceiveMessage() clears RXFUL and the RXBnIF flag:
+a routine that left the flag set would be entered again at once, for ever. RETFIE (the routine's return) sets GIE
+again.
 
 Question: why does main() not write the LCD from inside the routine?
 
@@ -29,7 +31,6 @@ RX_Filter0 = 0x088        # RXF0: the master console's ID
 RX_Mask0 = 0x7FF          # every ID bit is compared
 RX_Filter2 = MESSAGE_ID1  # RXF2..RXF5: RTR frames asking for this node's data
 RX_Mask1 = 0x7FF          # RXM1 compares every ID bit: only MESSAGE_ID1 reaches RXB1
-NO_INTERRUPT = 0b000      # CANSTAT.ICODE
 
 TxData = [0x01, 0x02, 0x03, 0x00, 0x00]
 news = False              # volatile, set by the routine: something new for the LCD
@@ -64,7 +65,7 @@ def read_potentiometer():
 def high_isr():
     """The receive interrupt (vector 0x08): RXB0 holds the master's 0x088, RXB1 what RX_Filter2..5 let in."""
     global news, master_id, master_ad, answered_id, answered_ad
-    while CANSTATbits.ICODE != NO_INTERRUPT:
+    while CANIsRxReady():
         RX_ID, RxData, DataLen, CANMessageFlag = CANReceiveMessage()    # RXB0 first; clears RXFUL and RXBnIF
         if RX_ID == MESSAGE_ID1 and CANMessageFlag & CAN_RX_RTR_FRAME:  # a request for this node's data
             read_potentiometer()
