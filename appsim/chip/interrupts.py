@@ -60,7 +60,7 @@ class Interrupts:
     writing 1, and then it interrupts as the peripheral's would. A status flag given to `provide` (TXIF = TXREG empty,
     RCIF = receive FIFO not empty) follows the peripheral's state: it reads what the peripheral says and ignores writes.
     INTCON's, INTCON2's and INTCON3's bits are plain R/W bits; nothing on the APP023 drives INT0..INT3 or PORTB's
-    change interrupt, and there is no Timer0, so their flags are set only by firmware that writes them.
+    change interrupt, and the kit models no Timer0, so their flags are set only by firmware that writes them.
 
     `request()` is the vector the core takes: with RCON.IPEN = 0 (compatibility mode) every source goes to 0x08,
     INTCON.GIE enabling all of them and INTCON.PEIE the peripherals' too; with IPEN = 1, a source whose priority bit

@@ -132,8 +132,8 @@ class USART:
     SREN has no effect in asynchronous mode, so a receiver opened with USART_SINGLE_RX receives nothing.
 
     Not simulated: synchronous mode (SYNC = 1 is refused with an error), address detection (ADDEN),
-    break characters (SENDB), auto-baud (ABDEN), wake-up (WUE); BAUDCON.RCIDL always reads 1. No
-    interrupts are taken (PIE1.TXIE/RCIE are stored only): firmware polls, as C18's functions do.
+    break characters (SENDB), auto-baud (ABDEN), wake-up (WUE); BAUDCON.RCIDL always reads 1. TXIF and RCIF
+    interrupt as the flags they are (appsim.chip.interrupts): TXIF while TXREG is empty, RCIF while a byte waits.
     """
 
     def __init__(self, mcu: PIC18F8680, interrupts: Interrupts):
