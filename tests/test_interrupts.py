@@ -471,11 +471,12 @@ def test_a_routine_that_leaves_its_flag_set_is_entered_again_at_once_until_the_w
     world.sim.run_for(1.0)
     message = stopped(board)
     assert module.entries == 10_000
-    assert message == ("the high-priority interrupt routine (@interrupt, vector 0x08) was entered again at once "
-                       "10,000 times in a row: each time it returned (RETFIE), PIR1bits.TMR1IF was still pending, and "
-                       "the core takes a pending interrupt again right after RETFIE, so main() has not run one "
-                       "instruction since. Clear the source's flag in the routine (as `PIR1bits.TMR1IF = 0`), or "
-                       "disable it")
+    assert message == ("the high-priority interrupt routine (@interrupt, vector 0x08) was entered 10,000 times in a "
+                       "row: each time it returned (RETFIE), PIR1bits.TMR1IF was still pending, and the core takes a "
+                       "pending interrupt again right after RETFIE, so main() has not run one instruction since the "
+                       "first. Clear the source's flag in the routine (`PIR1bits.TMR1IF = 0` for Timer1's), or "
+                       "disable the source (its enable bit: PIE1bits.TXIE for a transmit routine with nothing left "
+                       "to send)")
 
 
 def test_a_routine_that_never_returns_keeps_main_from_running_and_the_watchdog_says_so(board, world, tmp_path):

@@ -268,10 +268,12 @@ class PIC18F8680(SFRNames):
                 self._requested = False
                 return
             if taken == REENTRIES_AT_ONCE:
-                self._hang(f"{VECTOR_NAMES[vector]} was entered again at once {taken:,} times in a row: each time "
-                           f"it returned (RETFIE), {interrupts.pending()} was still pending, and the core takes a "
-                           f"pending interrupt again right after RETFIE, so {interrupted} has not run one instruction "
-                           "since. Clear the source's flag in the routine (as `PIR1bits.TMR1IF = 0`), or disable it")
+                self._hang(f"{VECTOR_NAMES[vector]} was entered {taken:,} times in a row: each time it returned "
+                           f"(RETFIE), {interrupts.pending()} was still pending, and the core takes a pending "
+                           f"interrupt again right after RETFIE, so {interrupted} has not run one instruction since "
+                           "the first. Clear the source's flag in the routine (`PIR1bits.TMR1IF = 0` for Timer1's), or "
+                           "disable the source (its enable bit: PIE1bits.TXIE for a transmit routine with nothing "
+                           "left to send)")
             taken += 1
             interrupts.enter(vector)
             self.version += 1                   # the routine may change what the interrupted loop reads
