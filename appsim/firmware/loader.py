@@ -24,6 +24,7 @@ from appsim.sim import TRACEBACK_FRAMES
 
 _loads = itertools.count()
 IDLE = "__appsim_idle__"            # the name an empty waiting loop calls (appsim.firmware.interrupts.idle)
+LOOP_TEXT = 80                      # characters of a waiting loop's line (and of its file's name) its messages quote
 
 
 def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
@@ -96,13 +97,18 @@ def waits_for_interrupts(tree: ast.Module, path: Path, source: bytes) -> None:
         names = list(dict.fromkeys(node.id for node in ast.walk(loop.test) if isinstance(node, ast.Name)))
         calls = ["Nop"] if any(isinstance(statement, ast.Expr) and isinstance(statement.value, ast.Call)
                                for statement in loop.body) else []
-        text = lines[loop.lineno - 1].strip() if loop.lineno <= len(lines) else "while"
         wait = ast.Expr(ast.Call(ast.Name(IDLE, ast.Load()), [
-            ast.Constant(f"line {loop.lineno} of {path.name} (`{text}`)"),
+            ast.Constant(f"line {loop.lineno} of {_shown(path.name)} (`{_shown(lines[loop.lineno - 1])}`)"),
             ast.Tuple([ast.Name(name, ast.Load()) for name in names], ast.Load()),
             ast.Tuple([ast.Name(name, ast.Load()) for name in calls], ast.Load())], []))
         loop.body.insert(0, ast.copy_location(wait, loop.body[0]))
     ast.fix_missing_locations(tree)
+
+
+def _shown(text: str, most: int = LOOP_TEXT) -> str:
+    """`text` on one line of printable characters, at most `most` of them, as a message quotes it."""
+    text = "".join(c if c.isprintable() else "?" for c in " ".join(text.split()))
+    return text if len(text) <= most else text[:most - 3] + "..."
 
 
 def _empty(loop: ast.While) -> bool:

@@ -142,7 +142,7 @@ class RemoteMCU(SFRNames):
     def wait_for_interrupt(self, loop: str) -> None:
         """An empty waiting loop's turn (PIC18F8680.wait_for_interrupt, on the board): until an interrupt is taken."""
         self._ahead = None
-        text = loop.encode()[:wire.MAX_LOOP]
+        text = loop.encode()[:wire.MAX_LOOP].decode("utf-8", "ignore").encode()     # whole characters
         self._pending += wire.IDLE_HEAD.pack(wire.IDLE, len(text)) + text
         self.flush()
         self._go_on()

@@ -47,7 +47,7 @@ SOURCE, GO, VALUE, DONE, ERROR, GO_ON, VECTOR = b"S", b"G", b"V", b"K", b"Z", b"
 # a high-priority routine's (or any, with RCON.IPEN = 0) sets GIEH again; a low-priority routine's leaves it as it is.
 INTCON = INTERRUPT_REGISTERS["INTCON"]
 VECTORS = (HIGH_VECTOR, LOW_VECTOR)
-MAX_LOOP = 512                      # bytes of an IDLE item's loop ("line 12 of ex6.py (`while not done:`)")
+MAX_LOOP = 1024                     # bytes of an IDLE item's loop ("line 12 of ex6.py (`while not done:`)")
 
 # A sandbox's zygote and the grader, on its control socket (one message a packet): FORK with the child's two pipe ends
 # (SCM_RIGHTS), answered FORKED pid:i32 (as the sandbox numbers it); ENDED pid:i32 status:i32 cpu_s:f64 when a child
