@@ -220,8 +220,8 @@ def test_a_firmware_with_interrupts_does_the_same_on_the_bus_sandboxed_as_in_pro
     ("a routine that leaves its flag set", "was entered 10,000 times in a row"),
     ("an empty loop no interrupt can end", "but INTCONbits.PEIE is 0"),
     ("an empty loop quoted with its tab and its comment",
-     "waits in an empty loop at line 8 of ex2.py (`while True: # 等待中断 ... wait for an interrupt that nev...`), "
-     "which only"),
+     "waits in an empty loop at line 8 of ex2.py (`while True: # 等待中断 ... wait for an interrupt that never comes, "
+     "quoted in the ...`), which only"),
     ("no routine at the vector", "the firmware has no @interrupt routine"),
     ("a routine that crashes", "high_isr(), the high-priority interrupt routine (@interrupt, vector 0x08), crashed "
                                "at line 10 of ex2.py (`TxData[7] = 1`): IndexError"),
