@@ -5,7 +5,7 @@ Peripherals set latched flags (TMR1IF, ADIF) or provide status flags (TXIF, RCIF
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 from appsim.chip.ecan import registers as ecan_registers
@@ -75,6 +75,8 @@ class Interrupts:
         self._status: dict[int, Callable[[], bool]] = {}
         self._registers = dict(RESETS)
         self.armed = False              # INTCON.GIE/GIEH: whether any interrupt can be taken now
+        self.requested = False          # an interrupt the core takes before its next instruction (see PIC18F8680)
+        self.routines: dict[int, Callable[[], object]] = {}     # vector -> the firmware's routine there
         self.in_service: list[int] = []     # the vectors of the routines running, the innermost last
 
     def provide(self, bit: int, status: Callable[[], bool]) -> None:
@@ -158,9 +160,11 @@ class Interrupts:
         self.armed = bool(self._registers[_INTCON] & GIEH)
         return vector
 
-    def reset(self) -> None:
-        """No routine running (a new firmware starts)."""
+    def reset(self, routines: Mapping[int, Callable[[], object]]) -> None:
+        """A new firmware starts, with these routines: none is running, none requested."""
+        self.routines = dict(routines)
         self.in_service.clear()
+        self.requested = False
 
     # -------------------------------------------------------------- in the workshop's words
     def pending(self) -> str:

@@ -88,6 +88,8 @@ class PIC18F8680(SFRNames):
     cycle, and a polling loop parked on its registers wakes to take one. While GIE is 0 nothing of this costs."""
 
     def __init__(self, sim: Simulator, name: str = "node", *, fosc: int = FOSC_HZ):
+        # 28 attributes: CPython 3.11 keeps up to 29 of an object's attributes inline, where they are fastest to reach;
+        # a 30th cost every register access about 3 %. New state goes to the peripherals (see Interrupts).
         self.sim = sim
         self.name = name
         self.fosc = fosc
@@ -117,8 +119,6 @@ class PIC18F8680(SFRNames):
         self.glcd: GLCDPort | None = None                   # the board's display, if it has one
         self.interrupts = Interrupts(self)
         self.map(self.interrupts, INTERRUPT_REGISTERS.items())
-        self._requested = False                             # an interrupt the core takes before its next instruction
-        self._routines: dict[int, Routine] = {}             # vector -> the firmware's routine there
         self.adc = ADC(self)
         self.map(self.adc, ADC_REGISTERS.items())
         self.timer1 = Timer1(self, self.interrupts)
@@ -161,7 +161,7 @@ class PIC18F8680(SFRNames):
         value = device.read(address) if device is not None else 0
         if again:
             self._polled[address] = value       # what the polling loop saw, to tell a change it would see
-        if (late or again) and self._requested:
+        if (late or again) and self.interrupts.requested:
             assert process is not None          # `late or again`: the firmware's own read
             self._interrupt(process)
         return value
@@ -233,9 +233,10 @@ class PIC18F8680(SFRNames):
         device = self._devices.get(address)
         if device is not None:
             device.write(address, value & 0xFF)
-        if self.interrupts.armed or self._requested:
+        interrupts = self.interrupts
+        if interrupts.armed or interrupts.requested:
             self._update_request()
-            if self._requested and process is not None:
+            if interrupts.requested and process is not None:
                 self._interrupt(process)
 
     def spend_cycles(self, cycles: int) -> None:
@@ -251,9 +252,10 @@ class PIC18F8680(SFRNames):
     # -------------------------------------------------------------- interrupts
     def _update_request(self) -> None:
         """Whether the core has an interrupt to take now; a parked firmware wakes to take it."""
-        self._requested = self.interrupts.armed and self.interrupts.request() != 0
+        interrupts = self.interrupts
+        interrupts.requested = interrupts.armed and interrupts.request() != 0
         process = self.process
-        if self._requested and process is not None and process.parked:
+        if interrupts.requested and process is not None and process.parked:
             process.wake()
 
     def _interrupt(self, process: Process) -> None:
@@ -262,10 +264,10 @@ class PIC18F8680(SFRNames):
         routine again, if it left its flag set)."""
         interrupts = self.interrupts
         interrupted, taken = process.routine, 0
-        while self._requested:
+        while interrupts.requested:
             vector = interrupts.request()
             if not vector:
-                self._requested = False
+                interrupts.requested = False
                 return
             if taken == REENTRIES_AT_ONCE:
                 self._hang(f"{VECTOR_NAMES[vector]} was entered {taken:,} times in a row: each time it returned "
@@ -280,9 +282,9 @@ class PIC18F8680(SFRNames):
             process.routine = VECTOR_NAMES[vector]
             process.spend(INTERRUPT_LATENCY_CYCLES * self.tcy_ps)
             self._update_request()
-            if self._requested:
+            if interrupts.requested:
                 self._interrupt(process)        # a high-priority source pre-empts a low-priority routine at once
-            routine = self._routines.get(vector)
+            routine = interrupts.routines.get(vector)
             if routine is None:
                 raise NoInterruptRoutine(missing_routine(vector))
             routine()
@@ -297,7 +299,7 @@ class PIC18F8680(SFRNames):
         at once, else parked until the time is over or an interrupt is requested. A routine's time does not count."""
         left = time_ps
         while True:
-            if self._requested:
+            if self.interrupts.requested:
                 self._interrupt(process)
             if left <= process.horizon - process.local_time:
                 process.local_time += left
@@ -315,7 +317,7 @@ class PIC18F8680(SFRNames):
         the watchdog's `FirmwareHung`, saying why."""
         process = self.process
         assert process is not None and _getcurrent() is process, "firmware waits in its own process"
-        while not self._requested:
+        while not self.interrupts.requested:
             why = self.interrupts.why_none_can_come()
             if why is not None:
                 self._hang(f"{process.routine} waits in an empty loop at {loop}, which only an interrupt routine can "
@@ -337,7 +339,8 @@ class PIC18F8680(SFRNames):
     def changed(self) -> None:
         """A peripheral changed state the firmware can see: wake a parked firmware (or interrupt it)."""
         self.version += 1
-        if self.interrupts.armed or self._requested:
+        interrupts = self.interrupts
+        if interrupts.armed or interrupts.requested:
             self._update_request()
         process = self.process
         if process is not None and process.parked and self._loop_would_see_a_change():
@@ -360,9 +363,7 @@ class PIC18F8680(SFRNames):
         if self.process is not None and not self.process.dead:
             self.process.stop()
         forget_firmware_code()          # new firmware brings new code objects (a grader loads thousands)
-        self._routines = dict(routines or {})
-        self.interrupts.reset()
-        self._requested = False
+        self.interrupts.reset(routines or {})
         context = contextvars.Context()
         context.run(RUNNING_MCU.set, self)                  # what `current_mcu()` gives its firmware
         self.process = self.sim.start(self.name, main, context=context)
