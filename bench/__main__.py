@@ -134,6 +134,7 @@ def _interrupts(config: Config) -> list[Figure]:
             Figure(f"interrupts' cost in the Ex{exercise} classroom (interrupt-driven / polling)", "ratio",
                    tuple(d / p for d, p in zip(driven, polling, strict=True))),
         ]
+    interrupts.checks_s(SOLUTIONS)              # the checks imported and warm, as in the figures above
     for what, measure, how in (("check Ex1, Ex3, Ex6 in process", interrupts.checks_s, ""),
                                ("appsim grade of Ex1, Ex3, Ex6, sandboxed", interrupts.appsim_grade_s,
                                 " (the whole command, --jobs 2)")):
