@@ -10,7 +10,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from appsim.workshop.course import SOLUTIONS
-from bench import busywait, fullload, grading, interrupts, knobs, linked, pythoncan
+from bench import busywait, fullload, grading, interrupts, knobs, linked, pythoncan, served
 from bench.figures import Figure, machine, repeat, table
 
 
@@ -26,13 +26,16 @@ class Config:
     class_size: int             # submissions graded by `appsim grade --jobs 2`
     isolation_class: int        # submissions graded sandboxed and --trusted, for the isolation's cost
     knob_turns: int             # slider moves per exercise notebook
+    served_frames: int          # frames from one python-can program to another through the "appsim" interface
     classroom_s: float          # simulated seconds of a classroom, polling against interrupt-driven stations
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
-              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5, classroom_s=5.0)
+              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5, served_frames=5000,
+              classroom_s=5.0)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
-               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1, classroom_s=0.1)
+               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1, served_frames=100,
+               classroom_s=0.1)
 
 
 def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
@@ -173,6 +176,30 @@ def _knobs(config: Config) -> list[Figure]:
     ]
 
 
+def _served(config: Config) -> list[Figure]:
+    through, bare, limits = [], [], []
+    for _ in range(max(config.runs, 1)):
+        fps, limit = served.interface_fps(config.served_frames)
+        through.append(fps)
+        limits.append(limit)
+        bare.append(served.virtual_fps(config.served_frames))
+    runs = [served.gradescope_against_grade_s() for _ in range(max(config.runs, 1))]
+    return [
+        Figure("python-can interface 'appsim': frames/s from one program to another, served bus at 1 Mbit/s",
+               "frames/s", tuple(through),
+               note=f"bus limit {limits[-1]:,.0f} frames/s of 8 bytes; python-can's virtual bus "
+                    f"{statistics.median(bare):,.0f} frames/s in the same run"),
+        Figure("python-can interface 'appsim' / python-can virtual bus", "ratio",
+               tuple(t / b for t, b in zip(through, bare, strict=True)),
+               note="the served bus is paced to the wall clock and arbitrates, ACKs and checks every frame"),
+        Figure("Gradescope: run_autograder on one full submission (after setup.sh)", "wall s",
+               tuple(g for g, _ in runs), lower_is_better=True,
+               note=f"appsim grade of the same, --jobs 2: {statistics.median(a for _, a in runs):.2f} s"),
+        Figure("Gradescope run / appsim grade, one full submission", "ratio", tuple(g / a for g, a in runs),
+               lower_is_better=True),
+    ]
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="a tiny configuration (seconds, not minutes)")
@@ -184,7 +211,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
         config = Config(**{**config.__dict__, "runs": args.runs})
     figures: list[Figure] = []
-    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _linked, _knobs):
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _linked, _knobs, _served):
         figures += part(config)
     print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
     print(table(figures))

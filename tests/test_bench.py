@@ -31,6 +31,10 @@ ROWS = (
     "linked: Ex2 frame spacing at a python-can peer",
     "linked: RTR round trip peer -> master -> peer",
     "notebook knob turn, as before: the classroom rerun from zero, LCD drawn by matplotlib",
+    "python-can interface 'appsim': frames/s from one program to another, served bus at 1 Mbit/s",
+    "python-can interface 'appsim' / python-can virtual bus",
+    "Gradescope: run_autograder on one full submission (after setup.sh)",
+    "Gradescope run / appsim grade, one full submission",
     "notebook knob turn: the live classroom goes on 0.2 s, LCD redrawn (Ex2..Ex6)",
     "notebook knob turn on Ex1: the board restarts (it reads its knob once)",
 )

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from appsim.bus.bitlevel import Assembled
-from appsim.bus.controller import Mode, Wire
+from appsim.bus.controller import ErrorCounters, Mode, Wire
 from appsim.can.bittiming import BitTiming
 from appsim.can.frame import CanFrame
 from appsim.chip.clock import FOSC_HZ
@@ -70,7 +70,7 @@ _SIDE_EFFECTS = frozenset(R.BY_NAME[n].address for n in ("CANCON", "TXB0CON", "T
                                                         "ECANCON"))
 
 
-class ECAN:
+class ECAN(ErrorCounters):
     """One ECAN module. Registers are the truth; everything else is derived from them or is counters.
 
     `changed` is called whenever an event of the bus changes what the firmware can read (the MCU wakes a waiting
@@ -107,14 +107,6 @@ class ECAN:
     def requested_mode(self) -> Mode:
         """The mode asked for in CANCON.REQOP (OPMODE follows once the bus allows)."""
         return _MODE_OF_REQOP[self._sfr[0x6F] >> 5]
-
-    @property
-    def bus_off(self) -> bool:
-        return self.tec > 255
-
-    @property
-    def error_passive(self) -> bool:
-        return not self.bus_off and (self.tec > 127 or self.rec > 127)
 
     @property
     def error_state(self) -> str:
