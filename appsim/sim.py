@@ -173,8 +173,8 @@ class Process(greenlet.greenlet):
     """
 
     # Slots: attributes of a greenlet subclass are otherwise looked up the slow way, on every register access.
-    __slots__ = ("failure", "finished", "horizon", "local_time", "main", "name", "parked", "sim", "stopping",
-                 "watched")
+    __slots__ = ("failure", "finished", "horizon", "local_time", "main", "name", "parked", "routine", "sim",
+                 "stopping", "watched")
 
     def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: contextvars.Context | None):
         super().__init__(self._body)
@@ -187,6 +187,7 @@ class Process(greenlet.greenlet):
         self.horizon: float = 0
         self.parked = False
         self.watched = True           # by the watchdog (a sandboxed firmware has its own limits)
+        self.routine = "main()"       # what runs now, in messages: main(), or the interrupt routine that interrupted it
         self.finished = False
         self.stopping = False
         self.failure: BaseException | None = None

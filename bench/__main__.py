@@ -9,7 +9,8 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from bench import busywait, fullload, grading, knobs, linked, memory, pythoncan, served
+from appsim.workshop.course import SOLUTIONS
+from bench import busywait, fullload, grading, interrupts, knobs, linked, memory, pythoncan, served
 from bench.figures import Figure, machine, repeat, table
 
 
@@ -27,14 +28,15 @@ class Config:
     knob_turns: int             # slider moves per exercise notebook
     served_frames: int          # frames from one python-can program to another through the "appsim" interface
     memory_hogs: tuple[str, ...] | None     # bench.memory's firmware whose worker memory is measured (None: all)
+    classroom_s: float          # simulated seconds of a classroom, polling against interrupt-driven stations
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
               linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5, served_frames=5000,
-              memory_hogs=None)
+              memory_hogs=None, classroom_s=5.0)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
                linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1, served_frames=100,
-               memory_hogs=("call sites",))
+               memory_hogs=("call sites",), classroom_s=0.1)
 
 
 def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
@@ -141,6 +143,33 @@ def _memory(config: Config) -> list[Figure]:
     ]
 
 
+def _interrupts(config: Config) -> list[Figure]:
+    figures = []
+    for exercise in (3, 6):
+        polling, driven = [], []
+        for _ in range(max(config.runs, 1)):
+            polling.append(interrupts.classroom_wall_ms_per_simulated_s(exercise, SOLUTIONS, config.classroom_s))
+            driven.append(interrupts.classroom_wall_ms_per_simulated_s(exercise, interrupts.INTERRUPT_DRIVEN,
+                                                                       config.classroom_s))
+        figures += [
+            Figure(f"classroom at Ex{exercise}, the stations polling (solutions/)", "wall ms / sim s", tuple(polling),
+                   note="master, six stations, the PC's monitor"),
+            Figure(f"classroom at Ex{exercise}, the stations interrupt-driven (solutions/interrupts/)",
+                   "wall ms / sim s", tuple(driven)),
+            Figure(f"interrupts' cost in the Ex{exercise} classroom (interrupt-driven / polling)", "ratio",
+                   tuple(d / p for d, p in zip(driven, polling, strict=True))),
+        ]
+    interrupts.checks_s(SOLUTIONS)              # the checks imported and warm, as in the figures above
+    for what, measure, how in (("check Ex1, Ex3, Ex6 in process", interrupts.checks_s, ""),
+                               ("appsim grade of Ex1, Ex3, Ex6, sandboxed", interrupts.appsim_grade_s,
+                                " (the whole command, --jobs 2)")):
+        both = [(measure(SOLUTIONS), measure(interrupts.INTERRUPT_DRIVEN)) for _ in range(max(config.runs, 1))]
+        polling_s, driven_s = (statistics.median(pair[i] for pair in both) for i in (0, 1))
+        figures.append(Figure(f"{what}: interrupt-driven / polling", "ratio", tuple(d / p for p, d in both),
+                              note=f"polling {polling_s:.2f} s, interrupt-driven {driven_s:.2f} s{how}"))
+    return figures
+
+
 def _linked(config: Config) -> list[Figure]:
     spacing = linked.frame_spacing_ms(config.linked_s)
     jitter = [abs(gap - linked.EX2_PERIOD_MS) for gap in spacing]
@@ -204,7 +233,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
         config = Config(**{**config.__dict__, "runs": args.runs})
     figures: list[Figure] = []
-    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _linked, _knobs, _served):
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _linked, _knobs, _served):
         figures += part(config)
     print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
     print(table(figures))

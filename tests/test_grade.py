@@ -58,7 +58,7 @@ def build_class(root: Path) -> None:
                  "ex3": firmware("return")},
         "frank": {"ex1": firmware("scale()", helpers="\ndef scale():\n    return 1023 // 0\n"),
                   "ex2": solution("ex2")},
-        "gina": {"ex1": firmware("while True:\n    pass"), "ex2": solution("ex2")},
+        "gina": {"ex1": firmware("spins = 0\nwhile True:\n    spins += 1"), "ex2": solution("ex2")},
         "hank": {"ex1": firmware("hoard = []\nwhile True:\n    hoard.append(bytearray(1 << 20))")},
         "ivan": {"ex1": firmware("import os\nos.fork()\nwhile True:\n    CANIsRxReady()"),
                  "ex2": firmware("import subprocess\nsubprocess.run(['true'])"),
@@ -506,7 +506,8 @@ def test_a_sandbox_left_waiting_past_its_boot_time_costs_the_next_student_nothin
 def test_each_exercise_of_a_submission_runs_in_a_fresh_process_of_its_sandbox():
     """A submission's exercises share its sandbox, one fresh process each: what one firmware leaves in its own process
     (a patched library) is gone for the next, as it is in `appsim check`."""
-    patcher = firmware("import appsim.firmware.an738 as an738\nan738.CANSendMessage = None\nwhile True:\n    pass")
+    patcher = firmware("import appsim.firmware.an738 as an738\nan738.CANSendMessage = None\nspins = 0\n"
+                       "while True:\n    spins += 1")
     source = (SOLUTIONS / EXERCISE_FILES["ex1"]).read_bytes()
     with Sandbox(isolation(), Limits(stall_s=1)) as sandbox:
         honest = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="carol")
@@ -522,7 +523,7 @@ def test_a_firmware_that_cannot_be_told_apart_in_its_sandbox_still_ends_when_its
     """Where the grader cannot tell the firmware's process apart (no number for it outside its sandbox), it ends the
     whole sandbox when the firmware's time is up, and the next exercise gets a fresh one. The grader hung there once,
     its watchdog waiting on itself: a process of its own here, so that a hang fails this test instead of hanging it."""
-    spinner_source = firmware("while True:\n    pass").encode()
+    spinner_source = firmware("spins = 0\nwhile True:\n    spins += 1").encode()
     script = tmp_path / "grade_spinner.py"
     script.write_text(f"""import json
 from appsim.workshop.grading.worker import grade_exercise

@@ -623,7 +623,7 @@ def _attack():
 ''')
 
 # ---------------------------------------------------------------------- spin without a word to the board
-SPIN_PASS = attack("while True:\n    pass")
+SPIN_PASS = attack("_spins = 0\nwhile True:\n    _spins += 1")     # `while True: pass` waits for an interrupt
 SPIN_SLEEP = attack("_time.sleep(3600)")
 SPIN_AT_LOAD = attack("", top="while True:\n    pass\n")
 
@@ -899,8 +899,10 @@ def attacked(tmp_path_factory, site, answer_keys):
     results = root / "grades.jsonl"
     hidden = site / "appsim" / "workshop" / "solutions"
     import appsim
-    host_paths = [Path(appsim.__file__).resolve().parent.parent, Path(sys.prefix).resolve(), root.resolve(),
-                  Path.cwd().resolve(), site.resolve(), *(f.resolve() for f in answer_keys["folders"])]
+    host_paths = [Path(appsim.__file__).resolve().parent.parent, root.resolve(), Path.cwd().resolve(), site.resolve(),
+                  *(f.resolve() for f in answer_keys["folders"])]
+    if sys.prefix != sys.base_prefix:
+        host_paths.append(Path(sys.prefix).resolve())   # the venv (outside one, the prefix is the runtime's own)
     context = {        # what a student could know or guess of the grader's machine
         "grader_pid": os.getpid(), "grader_pgid": os.getpgrp(), "seed": SEED,
         "memory_mb": LIMITS.memory_mb, "file_mb": LIMITS.file_mb,

@@ -238,6 +238,11 @@ class ECAN(ErrorCounters):
                 | (R.RXWARN if rec > 95 else 0))
         return bits | (R.EWARN if bits & (R.TXWARN | R.RXWARN) else 0)
 
+    def interrupt_registers(self) -> tuple[int, int, int]:
+        """PIR3, PIE3 and IPR3, as the core's interrupt logic reads them."""
+        sfr = self._sfr
+        return sfr[0xA4], sfr[0xA3], sfr[0xA5]
+
     def _icode(self) -> int:
         pending = self._sfr[0xA4] & self._sfr[0xA3]    # PIR3 & PIE3
         if pending & R.ERRIF:

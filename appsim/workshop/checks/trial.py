@@ -20,6 +20,7 @@ from appsim.chip.ecan.controller import ECAN
 from appsim.chip.mcu import PIC18F8680
 from appsim.errors import AppsimError, FirmwareError
 from appsim.firmware.identity import identity_of, shown
+from appsim.firmware.interrupts import routines as interrupt_routines
 from appsim.firmware.loader import load_firmware, load_source, read_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop.classroom import Classroom
@@ -44,13 +45,15 @@ class Firmware:
     """What the student handed in, loaded: what a board runs, what it calls itself, where its code lives.
 
     `identity` holds the integers the loaded firmware gives MESSAGE_ID1 and RTR_ID (missing if not integers): the
-    firmware's own word, which is safe to take, since the verdict comes from what it then does on the bus.
+    firmware's own word, which is safe to take, since the verdict comes from what it then does on the bus. `routines`
+    are its interrupt routines by vector, as the board's core calls them.
     """
 
     runnable: Callable[[], object]
     filename: str | None
     label: str
     identity: Mapping[str, int] = field(default_factory=dict)
+    routines: Mapping[int, Callable[[], object]] = field(default_factory=dict)
 
 
 class Loadable(Protocol):
@@ -66,7 +69,7 @@ def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmwar
         module = load()
     except FirmwareError as error:
         raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-    return Firmware(module.main, filename, label, identity_of(module))
+    return Firmware(module.main, filename, label, identity_of(module), interrupt_routines(module))
 
 
 def notebook_firmware(path: Path) -> tuple[str | None, bytes]:
@@ -94,7 +97,11 @@ def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable)
                                       "loops forever, as main() does in EX1.C"))
         filename = getattr(firmware, "__file__", None)
         label = Path(filename).name if filename else firmware.__name__
-        return Firmware(firmware.main, filename, label, identity_of(firmware))
+        try:
+            routines = interrupt_routines(firmware)
+        except FirmwareError as error:
+            raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
+        return Firmware(firmware.main, filename, label, identity_of(firmware), routines)
     load = getattr(firmware, "load", None)
     if callable(load):
         return load()
@@ -231,7 +238,7 @@ class Trial:
                                       master_potentiometer=self.master_potentiometers[0])
         board = self._board = (room.station(self.station) if own_board is None
                                else APP023(self.bus, own_board, potentiometer=self.potentiometers[-1]))
-        board.run(self.firmware.runnable)
+        board.run(self.firmware.runnable, self.firmware.routines)
         return room
 
     def node(self, name: str, main: Callable[[], object]) -> PIC18F8680:
