@@ -11,6 +11,10 @@ This starter prints frames, but it is not a good monitor yet. Run it, watch the 
   TODO 3: putsUSART waits until the whole line is sent (this one's 44 bytes for a 5-byte frame: 23 ms
           at 19200 baud, 10 bits a byte). What happens to the frames that arrive meanwhile?
           CANReceiveMessage's flags say when RXB0/RXB1 overflowed: report it.
+  TODO 4: the line format of docs/monitor-format.md: this starter prints neither STD/XTD
+          (CANMessageFlag & CAN_RX_XTD_FRAME) nor DATA/RTR (CANMessageFlag & CAN_RX_RTR_FRAME).
+  TODO 5: Timer1 wraps every 52.4288 ms: count its overflows (PIR1bits.TMR1IF), so that the time
+          counts up, in seconds since the monitor started.
 The solution (solutions/demo1_monitor.py) also keeps frames in a queue and counts exactly how many it lost.
 """
 from appsim.firmware import *
@@ -28,5 +32,6 @@ def main():
         if CANIsRxReady():
             RX_ID1, RxData, DataLen, CANMessageFlag = CANReceiveMessage()
             # TODO 3: if CANMessageFlag & CAN_RX_OVERFLOW: ...
-            seconds = ReadTimer1() * 8 / 10_000_000        # wraps every 52.4 ms: count PIR1bits.TMR1IF
+            seconds = ReadTimer1() * 8 / 10_000_000        # TODO 5: wraps every 52.4 ms: count PIR1bits.TMR1IF
+            # TODO 4: the documented line format: STD/XTD and DATA/RTR after the ID
             putsUSART(f"{seconds:12.6f}  0x{RX_ID1:03X}  DLC {DataLen}  {RxData.hex(' ').upper()}\r\n")

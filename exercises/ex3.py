@@ -4,7 +4,8 @@ Goal: receive the master console's data. Start from EX2.C and set RX_Filter0 = 0
 broadcasts 01 02 03 ADRESH ADRESL with ID 0x088 every 100 ms, so every station receives it and
 shows the master's A/D value (line 3) and its ID (line 4) on the LCD. The node keeps sending its
 own data on every Timer1 overflow. Extension: set RX_Filter0 to a neighbour station's Message ID
-and "control each other" (show each other's data).
+and "control each other" (show each other's data), in a copy (ex3_ext.py) once the check passes:
+the check judges the 0x088 version.
 
 Question: which RX_Filter0 lets the master's frames into RXB0, and why does nothing else get in?
 """

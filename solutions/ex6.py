@@ -15,7 +15,9 @@ data with an RTR whose ID is your MESSAGE_ID1. RXB1 accepts only frames that mat
 filters RXF2..RXF5 under mask RXM1, so one of them must equal MESSAGE_ID1 for the request to reach
 RXB1 at all. The mask must compare every ID bit that tells your ID from the others on the bus:
 with mask 0 RXB1 would take every frame, and only the software test RX_ID2 == MESSAGE_ID1 would
-keep the node from answering the other stations' requests; 0x7FF compares all 11 bits. The
+keep the node from answering the other stations' requests (the check's "RXB1 takes only MESSAGE_ID1"
+fails it); 0x0FF passes here by luck (it would alias 0x100 with 0x000 and 0x200); 0x7FF compares
+all 11 bits, the safe one. The
 CAN_RX_RTR_FRAME test matters too, though on a correct bus it never meets a data frame with your
 ID: only one node sends the data frames of an identifier, and that is you. A faulty node might send
 one (the check plays such a node), and a data frame is not a request. RXB1CONbits.RXFUL says a

@@ -2,7 +2,8 @@
 
 EX1: Run All with the starter (the check says what to fix), the fix typed into the firmware cell's editor, Run All again
 (full marks), the potentiometer turned (LCD line 3 follows). EX3 with a typo: the board says why in the check's words,
-numbered as in the cell, and the check cell still runs. Screenshots go to $APPSIM_ARTIFACTS (out/screenshots).
+numbered as in the cell, and the check cell still runs. 00 and 01: their pictures, and the try that ends each, first as
+shipped, then with a right answer typed in. Screenshots go to $APPSIM_ARTIFACTS (out/screenshots).
 """
 from __future__ import annotations
 
@@ -103,7 +104,7 @@ class Lab:
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory) -> Iterator[Lab]:
     root = tmp_path_factory.mktemp("notebooks")
-    for name in ("ex1", "ex3"):
+    for name in ("ex1", "ex3", "00_can_in_15_minutes", "01_bit_timing"):
         shutil.copy(KIT / "notebooks" / f"{name}.ipynb", root)
     notebook = nbformat.read(root / "ex3.ipynb", as_version=4)
     [firmware] = [cell for cell in notebook.cells if "firmware" in cell.metadata.get("tags", [])]
@@ -170,6 +171,10 @@ class Notebook:
                               ".includes(argument))", tag)
         assert index >= 0, f"{self.name} has no cell tagged {tag}"
         return self.page.locator(".jp-Notebook .jp-Cell").nth(index)
+
+    def output_of(self, code: str):
+        """The output of the code cell whose text has `code`."""
+        return self.page.locator(".jp-Notebook .jp-CodeCell", has_text=code).locator(".jp-OutputArea")
 
     def run_cell_output(self):
         """The output of the cell that makes the station (`station = Station(...)`)."""
@@ -242,3 +247,42 @@ def test_ex3_with_a_typo_the_board_says_why_and_the_check_still_runs(lab, page):
     assert notebook.errors() == [], "no cell failed: Run All went on to the check"
     check = notebook.cell("check").locator(".jp-OutputArea").inner_text()
     assert "EX3: 0/5" in check and said in check
+
+
+def test_00_its_pictures_and_the_prediction_typed_into_its_try(lab, page):
+    notebook = Notebook(page, lab, "00_can_in_15_minutes")
+    notebook.run_all()
+    assert notebook.errors() == []
+    for step, code in (("1-error-states", "plots.error_states()"), ("2-comstat", 'plots.register_bits("COMSTAT"'),
+                       ("3-overload", "plots.recorded_wire(")):
+        picture = notebook.output_of(code)
+        assert picture.locator("img").count() == 1, f"{code} draws one picture"
+        notebook.screenshot(step, picture)
+    verdict = notebook.cell("try-check").locator(".jp-OutputArea")
+    notebook.screenshot("4-try-as-shipped", verdict)
+    assert "Your prediction: 1/5" in verdict.inner_text() and "TEC 15" not in verdict.inner_text()
+    for board, counters in (("station1", "(15, 0)"), ("master", "(0, 1)"), ("third", "(0, 1)")):
+        notebook.replace_line("try", f'"{board}": (None, None),', f'    "{board}": {counters},')
+    notebook.run_all()
+    notebook.screenshot("5-try-predicted", verdict)
+    assert "Your prediction: 5/5" in verdict.inner_text() and "FAIL" not in verdict.inner_text()
+
+
+def test_01_brgcon2_bit_by_bit_and_a_bit_timing_typed_into_its_try(lab, page):
+    notebook = Notebook(page, lab, "01_bit_timing")
+    notebook.run_all()
+    assert notebook.errors() == []
+    picture = notebook.output_of('plots.register_bits("BRGCON2"')
+    assert picture.locator("img").count() == 1
+    notebook.screenshot("1-brgcon2", picture)
+    verdict = notebook.cell("try-check").locator(".jp-OutputArea")
+    timeline = notebook.output_of("plots.bus_timeline(tried.bus.trace")
+    notebook.screenshot("2-try-as-shipped", verdict)
+    notebook.screenshot("3-bus-as-shipped", timeline)
+    assert "Your bit timing: 1/4" in verdict.inner_text() and "125 kbit/s, not 250" in verdict.inner_text()
+    for register, value in (("BRGCON1", "0xC3"), ("BRGCON2", "0xBE"), ("BRGCON3", "0x03")):
+        notebook.replace_line("try", f"{register} = ", f"{register} = {value}      # 250 kbit/s: BRP 4, 1+7+8+4 TQ")
+    notebook.run_all()
+    notebook.screenshot("4-try-joins", verdict)
+    notebook.screenshot("5-bus-joins", timeline)
+    assert "Your bit timing: 4/4" in verdict.inner_text() and "FAIL" not in verdict.inner_text()

@@ -53,12 +53,16 @@ def test_shipped_exercise_notebook_has_the_starter_in_its_firmware_cell_and_the_
         "notebooks ship without outputs"
 
 
-def execute(name: str, workdir: Path) -> nbformat.NotebookNode:
-    """Run a copy of the notebook in `workdir`, with the solution in its firmware cell; fail on any cell error."""
+def execute(name: str, workdir: Path, tries: dict[str, str] | None = None) -> nbformat.NotebookNode:
+    """Run a copy of the notebook in `workdir`, with the solution in its firmware cell (and `tries`' source in the
+    cell tagged with its key); fail on any cell error."""
     notebook = read(name)
     for cell in tagged(notebook, "firmware"):
         filename, _ = firmware_file(cell)
         cell.source = f"%%writefile {filename}\n" + (KIT / "solutions" / filename).read_text()
+    for tag, source in (tries or {}).items():
+        [cell] = tagged(notebook, tag)
+        cell.source = source
     client = NotebookClient(notebook, timeout=CELL_TIMEOUT_S, kernel_name="python3",
                             resources={"metadata": {"path": str(workdir)}})
     try:
@@ -83,3 +87,23 @@ def test_notebook_runs_top_to_bottom_with_the_solutions_and_the_check_gives_full
         scored, out_of = map(int, SCORE.search(shown).groups())
         assert out_of > 0 and scored == out_of, f"{name}: the solution should get full marks:\n{shown}"
         assert "FAIL" not in shown
+
+
+RIGHT_ANSWERS = {
+    "00_can_in_15_minutes": 'node, kind, bit, frames = "station1", "bit", 20, 2\n'
+                            'prediction = {"station1": (15, 0), "master": (0, 1), "third": (0, 1)}',
+    "01_bit_timing": "BRGCON1, BRGCON2, BRGCON3 = 0xC3, 0xBE, 0x03      # 250 kbit/s: BRP 4, 1 + 7 + 8 + 4 TQ",
+}
+"""A right answer to the try that ends notebooks 00 and 01: a prediction of the counters, a bit timing."""
+
+
+@pytest.mark.parametrize("name", sorted(RIGHT_ANSWERS))
+def test_the_try_that_ends_00_and_01_gives_full_marks_to_a_right_answer_in_a_real_kernel(name, tmp_path):
+    notebook = read(name)
+    assert [tag for cell in notebook.cells for tag in cell.metadata.get("tags", [])] == ["try", "try-check"]
+    notebook = execute(name, tmp_path, {"try": RIGHT_ANSWERS[name]})
+    [cell] = tagged(notebook, "try-check")
+    [result] = [output for output in cell.outputs if output.output_type == "execute_result"]
+    shown = result.data["text/html"]
+    scored, out_of = map(int, SCORE.search(shown).groups())
+    assert out_of >= 4 and scored == out_of and "FAIL" not in shown, shown

@@ -10,11 +10,23 @@ import matplotlib.pyplot as plt
 import pytest
 from workshop import lone_node
 
+from appsim.board.app023 import APP023
 from appsim.bus.monitor import bus_load
-from appsim.bus.wire import Bus
+from appsim.bus.wire import BUS_IDLE_BITS, Bus
 from appsim.can.bits import encode, encode_annotated
 from appsim.can.bittiming import BitTiming
 from appsim.can.frame import CanFrame
+from appsim.chip.ecan.registers import BY_NAME, RXWARN, TXWARN
+from appsim.firmware import (
+    CAN_CONFIG_ALL_MSG,
+    CAN_TX_PRIORITY_0,
+    CAN_TX_STD_FRAME,
+    CANInitialize,
+    CANIsRxReady,
+    CANReceiveMessage,
+    CANSendMessage,
+    Delay1KTCYx,
+)
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import plots
 from appsim.workshop.classroom import Classroom
@@ -167,3 +179,109 @@ def test_error_counter_history_draws_tec_rec_and_the_error_passive_threshold():
     for label in figure.axes[0].texts:
         box = label.get_window_extent()
         assert inside.y0 <= box.y0 and box.y1 <= inside.y1, f"{label.get_text()!r} is cut by the frame"
+
+
+def smallest(counter: str, holds) -> int:
+    """The smallest value of an ECAN's TEC or REC at which `holds(ecan)`, the other counter at 0."""
+    ecan = APP023(Bus(Simulator()), "probe").ecan
+    for value in range(300):
+        setattr(ecan, counter, value)
+        if holds(ecan):
+            return value
+    raise AssertionError(f"{counter} never makes it hold")
+
+
+def sending(frame: CanFrame):
+    def main():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
+        Delay1KTCYx(10)
+        CANSendMessage(frame.can_id, list(frame.data), frame.dlc, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME)
+        listening_loop()
+    return main
+
+
+def listening_loop():
+    while True:
+        if CANIsRxReady():
+            CANReceiveMessage()
+
+
+def listening():
+    CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_MSG)
+    listening_loop()
+
+
+def test_error_states_draws_the_three_states_and_the_thresholds_the_ecan_switches_at():
+    comstat = BY_NAME["COMSTAT"].address
+    passive = smallest("tec", lambda ecan: ecan.error_state == "error-passive")
+    assert passive == smallest("rec", lambda ecan: ecan.error_state == "error-passive")
+    bus_off = smallest("tec", lambda ecan: ecan.error_state == "bus-off")
+    warning = smallest("tec", lambda ecan: ecan.read(comstat) & TXWARN)
+    assert smallest("rec", lambda ecan: ecan.read(comstat) & RXWARN) == warning
+    board = APP023(Bus(Simulator()), "off")
+    board.run(listening)                                       # CANInitialize: on the bus, in Normal mode
+    board.bus.sim.run(until=PS_PER_SECOND // 100)
+    ecan = board.ecan
+    ecan.tec = bus_off
+    ecan.bus_off_recovery(plots.RECOVERY_SEQUENCES - 1)
+    assert ecan.bus_off
+    ecan.bus_off_recovery(1)
+    assert (ecan.tec, ecan.rec, ecan.error_state) == (0, 0, "error-active")
+    figure = plots.error_states()
+    shown = texts(figure)
+    assert shown[0:6:2] == ["error-active", "error-passive", "bus-off"]
+    conditions = [t.get_text() for t in figure.axes[0].texts if t.get_gid() == "condition"]
+    assert conditions[:3] == [f"TEC > {passive - 1}\nor REC > {passive - 1}",
+                              f"TEC <= {passive - 1}\nand REC <= {passive - 1}", f"TEC > {bus_off - 1}"]
+    assert conditions[3].startswith(f"after {plots.RECOVERY_SEQUENCES} x {BUS_IDLE_BITS} recessive bits: TEC = REC = 0")
+    says = " ".join(shown)
+    for words in (f"TEC or REC > {warning - 1}", f"COMSTAT.TXBP (TEC > {passive - 1})",
+                  f"COMSTAT.RXBP (REC > {passive - 1})", f"COMSTAT.TXBO (TEC > {bus_off - 1})", "PIR3.ERRIF"):
+        assert words in says
+    assert len(patches(figure, "state")) == 3 and len(patches(figure, "transition")) == 4
+    figure.canvas.draw()
+    inside = figure.get_window_extent()
+    for text in figure.axes[0].texts:
+        box = text.get_window_extent()
+        assert inside.x0 <= box.x0 and box.x1 <= inside.x1, f"{text.get_text()!r} is cut at the side"
+
+
+def test_register_bits_draws_each_bit_by_its_data_sheet_name_and_decodes_each_field():
+    figure = plots.register_bits("BRGCON2", 0xBA)
+    names = [t.get_text() for t in figure.axes[0].texts][0:24:3]
+    assert names == ["PRSEG0", "PRSEG1", "PRSEG2", "SEG1PH0", "SEG1PH1", "SEG1PH2", "SAM", "SEG2PHTS"], "bit 0 first"
+    values = [t.get_text() for t in figure.axes[0].texts][1:24:3]
+    assert values == [str(0xBA >> bit & 1) for bit in range(8)]
+    fields = [t.get_text() for t in figure.axes[0].texts if t.get_gid() == "field"]
+    assert fields == ["SEG1PH<2:0> = 111 (7)", "PRSEG<2:0> = 010 (2)"]
+    assert [p.get_x() for p in patches(figure, "bit")] == list(range(7, -1, -1)), "bit 7 on the left"
+    assert figure.axes[0].get_title() == "BRGCON2 = 0xBA"
+    assert not [t for t in plots.register_bits("COMSTAT", 0x15).axes[0].texts if t.get_gid() == "field"]
+    with pytest.raises(ValueError, match="no bit names for TXB0D0"):
+        plots.register_bits("TXB0D0", 0)
+    with pytest.raises(ValueError, match="8-bit register"):
+        plots.register_bits("COMSTAT", 0x100)
+
+
+def test_recorded_wire_draws_what_the_bus_carried_past_eof_as_the_overload_frame():
+    frame = CanFrame(0x100, bytes([1, 2, 3, 0, 0]))
+    bus = Bus(Simulator())
+    for name in ("sender", "receiver", "other"):
+        APP023(bus, name).run(sending(frame) if name == "sender" else listening)
+    bus.inject("receiver", "form", len(encode(frame)) - 1)          # a dominant bit in the last bit of EOF
+    bus.sim.run(until=4 * PS_PER_SECOND // 1000)
+    [event] = bus.trace
+    assert event.ok and event.wire
+    figure = plots.recorded_wire(event, 125_000)
+    drawn = list(figure.axes[0].lines[0].get_ydata())[:-1]
+    bit_ps = PS_PER_SECOND // 125_000
+    on_wire = [next(level for time, level in reversed(event.wire) if time <= event.start_ps + i * bit_ps + bit_ps // 2)
+               for i in range((event.end_ps - event.start_ps) // bit_ps)]
+    assert drawn == on_wire
+    labels = texts(figure)
+    assert labels[-3:] == ["EOF", "overload\nflag(s)", "overload\ndelimiter"]
+    flags = len(on_wire) - len(encode(frame)) - 8
+    assert on_wire[len(encode(frame)):] == [0] * flags + [1] * 8 and 6 <= flags <= 12
+    assert f"then {flags + 8} bits of overload frame" in figure.axes[0].get_title()
+    with pytest.raises(ValueError, match="run bit by bit"):
+        plots.recorded_wire(lone_node(0.002).trace[0], 125_000)

@@ -60,7 +60,8 @@ def acks(event: BusEvent, nodes: Sequence[str]) -> str:
 
 class TraceTable:
     """Bus events as the monitor lists them, one line a frame: in a terminal `format_event`'s lines, in Jupyter a table
-    whose ACK column says who ACKed in a few words (`acks` among `nodes`) and whose error frames stand out in red.
+    whose ACK column says who ACKed in a few words (`acks` among `nodes`) and whose error frames stand out in red. Both
+    give each frame its `stamp`, the end of frame, as every log does.
     `column`, if given, is one more column: its title and what it shows for each event; `signals` (a DBC's reading,
     `appsim.bus.signals.Signals`) one more: each frame's message and signal values."""
 
@@ -100,7 +101,7 @@ class TraceTable:
         data = "" if frame.remote else frame.data.hex(" ").upper()
         ack = (f"<b style='color:#cf222e'>error: {html.escape(event.error)}</b>" if event.error
                else html.escape(acks(event, self.nodes)))
-        cells = [f"{event.start_ps / PS_PER_SECOND:.6f}", html.escape(event.sender), f"<code>{ident}</code>", kind,
+        cells = [f"{stamp(event):.6f}", html.escape(event.sender), f"<code>{ident}</code>", kind,
                  str(frame.dlc), f"<code>{data}</code>" if data else "", ack]
         if self.column is not None:
             cells.append(html.escape(self.column[1](event)))

@@ -5,9 +5,10 @@ usart.h) drives it.
 """
 from __future__ import annotations
 
+import bisect
 import functools
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 from appsim.chip.interrupts import Interrupts
@@ -284,20 +285,63 @@ class USART:
         self.mcu.changed()
 
 
+Sent = tuple[int, int, int]
+"""One 8N1 frame on a line: (start_ps, byte, bit_ps), the time its start bit begins, its byte, the sender's bit time."""
+
+
+def _line(frames: Sequence[Sent]) -> Callable[[int], int]:
+    """The level of a line carrying `frames` (in time order, none overlapping) at a time: high (1) when idle."""
+    starts = [start for start, _, _ in frames]
+
+    def level(t: int) -> int:
+        index = bisect.bisect_right(starts, t) - 1
+        if index < 0:
+            return 1
+        start, byte, bit_ps = frames[index]
+        bit = (t - start) // bit_ps
+        return 0 if bit == 0 else (byte >> (bit - 1)) & 1 if bit <= 8 else 1
+
+    return level
+
+
+def _read_frame(level: Callable[[int], int], start: int, bit_ps: int, data_bits: int) -> tuple[int, int, int] | None:
+    """A receiver at `bit_ps` reads a frame whose start bit's falling edge is at `start`: (data bits as a number, the
+    last data bit, the stop bit), or None if the start bit is not low at its middle (a glitch, not a start)."""
+    if level(start + bit_ps // 2):
+        return None
+    bits = [level(start + bit_ps // 2 + (i + 1) * bit_ps) for i in range(data_bits)]
+    return (sum(bit << i for i, bit in enumerate(bits)), bits[-1],
+            level(start + bit_ps // 2 + (data_bits + 1) * bit_ps))
+
+
 def _sample(byte: int, sent_bit_ps: int, bit_ps: int, data_bits: int) -> tuple[int, int, int] | None:
     """What a receiver at `bit_ps` reads from one 8N1 frame sent at `sent_bit_ps` (line idle after it).
 
     Returns (data bits as a number, the last data bit, the stop bit), or None if the start bit is not
     seen low at its middle. At matching rates this is (byte, bit 7, 1).
     """
-    frame = [0] + [(byte >> i) & 1 for i in range(8)] + [1]
+    return _read_frame(_line([(0, byte, sent_bit_ps)]), 0, bit_ps, data_bits)
 
-    def level(t: int) -> int:
-        index = t // sent_bit_ps
-        return frame[index] if index < len(frame) else 1
 
-    if level(bit_ps // 2):
-        return None
-    bits = [level(bit_ps // 2 + (i + 1) * bit_ps) for i in range(data_bits)]
-    return sum(bit << i for i, bit in enumerate(bits)), bits[-1], level(bit_ps // 2 + (data_bits + 1) * bit_ps)
-
+def decode(frames: Iterable[Sent], baud: int = PC_BAUD) -> list[Received]:
+    """What a UART receiver at `baud` (8N1) reads from a line that carried `frames`, as the PIC18F2550's reads the
+    board's TX pin: from each falling edge it samples the bits at their middles; a stop bit read low is a framing
+    error (the byte is kept, FERR set). At the sender's own rate that is every byte as sent; at another rate, garbage.
+    """
+    sent = sorted(frames)
+    if not sent:
+        return []
+    bit_ps = round(PS_PER_SECOND / baud)
+    level = _line(sent)
+    edges = sorted({start + n * step for start, _, step in sent for n in range(9)})     # where the line may fall
+    received, ready = [], 0            # ready: the receiver looks for a start edge from then on
+    for edge in edges:
+        if edge < ready or level(edge - 1) == 0 or level(edge) == 1:
+            continue
+        frame = _read_frame(level, edge, bit_ps, 8)
+        if frame is None:
+            continue
+        data, last, stop = frame
+        received.append(Received(data, False, not stop))
+        ready = edge + bit_ps * 19 // 2                  # the middle of the stop bit
+    return received

@@ -24,6 +24,8 @@ from appsim.bus.monitor import TraceTable
 from appsim.bus.serve import ServedInBackground
 from appsim.bus.signals import Signals
 from appsim.bus.wire import Bus, BusEvent
+from appsim.chip import usart
+from appsim.chip.usart import Sent
 from appsim.firmware.loader import load_source
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import checks, plots
@@ -158,6 +160,7 @@ class Station:
         self.trial: Trial | None = None
         self.fault: Fault | None = None
         self.usb = bytearray()              # what the board sent the PC through the USB-CDC port
+        self.line: list[Sent] = []          # the same on the USART's TX line: (start_ps, byte, bit_ps) each
         self._start()
 
     # -------------------------------------------------------------- running
@@ -165,6 +168,7 @@ class Station:
         """Load the firmware and run the classroom from zero, for `seconds`."""
         self.trial, self.fault = None, None
         self.usb.clear()
+        self.line.clear()
         try:
             trial = checks.prepare(self.exercise, FirmwareCell(self.firmware), SEED)
         except Fatal as fatal:
@@ -172,7 +176,12 @@ class Station:
             return
         number = WATCHED_CLASSROOM if self.exercise == "demo1" else int(self.exercise.removeprefix("ex"))
         trial.classroom(number, STATIONS, own_board="demo1" if self.exercise == "demo1" else None)
-        trial.board.usb.listeners.append(lambda byte, time_ps: self.usb.append(byte))
+        board_usart = trial.board.usart
+
+        def sent(byte: int, time_ps: int) -> None:
+            self.usb.append(byte)
+            self.line.append((time_ps - board_usart.frame_ps(), byte, board_usart.bit_ps()))
+        trial.board.usb.listeners.append(sent)
         self.trial = trial
         self._knobs()
         self._run(self.seconds)
@@ -372,9 +381,21 @@ class Station:
 
     @_after_a_run
     def terminal(self, *, characters: int = 1500) -> Note:
-        """What a terminal on the PC shows of the USB-CDC port: the first `characters` the board sent."""
-        text = self.usb.decode("latin-1").replace("\0", "")      # C18's putsUSART sends the NUL; terminals skip it
-        return Note(text[:characters] or "(nothing)", table=True)
+        """What a terminal on the PC shows of the USB-CDC port: the first `characters` of what the PIC18F2550's UART,
+        at 19200 baud, decoded of the board's TX line. At another baud rate that is garbage, and a first line says
+        so."""
+        assert self.trial is not None
+        decoded = usart.decode(self.line, usart.PC_BAUD)
+        read = bytes(received.data for received in decoded)
+        text = read.decode("latin-1").replace("\0", "")[:characters] or "(nothing)"   # C18's putsUSART sends the NUL
+        if read == self.usb:                                                        # too; terminals skip it
+            return Note(text, table=True)
+        shown = "".join(c if c.isprintable() or c in "\r\n" else "·" for c in text)
+        errors = sum(received.framing_error for received in decoded)
+        return Note(f"[the USART sends at {self.trial.board.usart.baud:.0f} baud, the PIC18F2550 reads "
+                    f"{usart.PC_BAUD}: of the {len(self.usb)} bytes sent it decoded {len(decoded)}, {errors} of them "
+                    f"with a framing error. This is what the PC's terminal shows (· for what it cannot print):]\n"
+                    f"{shown}", table=True)
 
 
 # ------------------------------------------------------------------------------------------------- a served classroom

@@ -1,4 +1,5 @@
-"""Pictures for the notebooks: a frame's bits on the wire, arbitration, one bit's time segments, the bus over time.
+"""Pictures for the notebooks: a frame's bits on the wire, arbitration, one bit's time segments, the bus over time,
+the error states, a register's bits.
 
 Each function draws on `ax` (a new figure when None) and returns the Figure, as `GLCD.picture` does.
 """
@@ -10,11 +11,12 @@ from typing import TYPE_CHECKING, Any, cast
 
 from appsim.bus import monitor
 from appsim.bus.bitlevel import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
-from appsim.bus.wire import BusEvent
+from appsim.bus.wire import BUS_IDLE_BITS, BusEvent
 from appsim.can import physical
 from appsim.can.bits import WireBit, encode_annotated
 from appsim.can.bittiming import SYNC_SEG_TQ, BitTiming
 from appsim.can.frame import CanFrame
+from appsim.chip.ecan.registers import BITFIELDS
 from appsim.sim import PS_PER_SECOND
 
 if TYPE_CHECKING:
@@ -25,13 +27,17 @@ FIELD_COLOURS = {
     "SOF": "#f4cccc", "ID": "#fce5cd", "SRR": "#fff2cc", "IDE": "#fff2cc", "RTR": "#fff2cc", "r0": "#d9ead3",
     "r1": "#d9ead3", "DLC": "#d9ead3", "DATA": "#cfe2f3", "CRC": "#d9d2e9", "CRC delimiter": "#eeeeee",
     "ACK slot": "#b6d7a8", "ACK delimiter": "#eeeeee", "EOF": "#eeeeee", "error flag": "#ea9999",
-    "error delimiter": "#eeeeee",
+    "error delimiter": "#eeeeee", "overload flag": "#f9cb9c", "overload delimiter": "#eeeeee",
 }
 FIELD_LABELS = {"CRC delimiter": "DEL", "ACK delimiter": "DEL", "ACK slot": "ACK", "error flag": "error\nflag",
-                "error delimiter": "error\ndelimiter"}
+                "error delimiter": "error\ndelimiter", "overload flag": "overload\nflag(s)",
+                "overload delimiter": "overload\ndelimiter"}
 ARBITRATION_FIELDS = frozenset({"SOF", "ID", "SRR", "IDE", "RTR"})
 SEGMENT_COLOURS = {"Sync": "#999999", "Prop": "#f6b26b", "Phase1": "#93c47d", "Phase2": "#6fa8dc"}
 ERROR_THRESHOLDS = ((96, "warning (96)"), (128, "error-passive (128)"), (256, "bus-off (TEC 256)"))
+WARNING, PASSIVE, BUS_OFF = (level for level, _ in ERROR_THRESHOLDS)
+RECOVERY_SEQUENCES = 128                  # occurrences of 11 recessive bits that bring a bus-off node back
+STATE_COLOURS = {"error-active": "#d9ead3", "error-passive": "#fff2cc", "bus-off": "#f4cccc"}
 MS = PS_PER_SECOND / 1000
 SIGNAL_LABELS = 12             # frames in a timeline few enough for each label to carry its signals
 
@@ -78,16 +84,7 @@ def wire_bits(frame: CanFrame, ax: Axes | None = None, *, acked: bool = True) ->
     else:
         bits = bits[:next(i for i, bit in enumerate(bits) if bit.field == "ACK slot") + 1]
         bits += [WireBit(0, "error flag")] * ERROR_FLAG_BITS + [WireBit(1, "error delimiter")] * ERROR_DELIMITER_BITS
-    position, narrow = 0, 0
-    for field, run in groupby(bits, key=lambda bit: bit.field):
-        width = len(list(run))
-        ax.axvspan(position, position + width, color=FIELD_COLOURS[field], zorder=0)
-        narrow = narrow + 1 if width < 3 else 0          # stagger the labels of one- and two-bit fields
-        ax.text(position + width / 2, 1.2 + 0.25 * (narrow % 2), FIELD_LABELS.get(field, field), ha="center",
-                va="bottom", fontsize=8)
-        position += width
-    _stuff_bits(ax, bits)
-    _levels(ax, [bit.level for bit in bits], color="black", linewidth=1.5)
+    _fields(ax, bits)
     stuffed = sum(bit.stuff for bit in bits)
     kind = "remote" if frame.remote else "data"
     if acked:
@@ -95,10 +92,53 @@ def wire_bits(frame: CanFrame, ax: Axes | None = None, *, acked: bool = True) ->
     else:
         ax.set_title(f"{kind} frame {frame} that nobody ACKs:\nits ACK slot stays recessive, so from the next bit "
                      "the sender sends an error flag (6 dominant bits), then the error delimiter (8 recessive)")
+    return _figure(ax)
+
+
+def _fields(ax: Axes, bits: Sequence[WireBit]) -> None:
+    """Bits on the wire from bit 0: their levels, each field a coloured band with its name, stuff bits in red."""
+    position, narrow = 0, 0
+    for field, run in groupby(bits, key=lambda bit: bit.field):
+        width = len(list(run))
+        ax.axvspan(position, position + width, color=FIELD_COLOURS[field], zorder=0)
+        narrow = narrow + 1 if width < 3 else 0          # stagger the labels of one- and two-bit fields: DEL ACK DEL
+        ax.text(position + width / 2, 1.2 + 0.22 * (narrow % 3 if narrow else 1), FIELD_LABELS.get(field, field),
+                ha="center", va="bottom", fontsize=8)
+        position += width
+    _stuff_bits(ax, bits)
+    _levels(ax, [bit.level for bit in bits], color="black", linewidth=1.5)
     ax.set_xlim(0, len(bits))
-    ax.set_ylim(-0.3, 1.8)
+    ax.set_ylim(-0.3, 2.0)
     ax.set_yticks([0, 1], ["dominant 0", "recessive 1"])
     ax.set_xlabel("bit")
+
+
+def recorded_wire(event: BusEvent, bit_rate: int, ax: Axes | None = None) -> Figure:
+    """A frame that went through as the bus ran it bit by bit (`BusEvent.wire`, sampled in the middle of each bit):
+    its fields to the end of EOF, then what the wire carried until the event ended, the overload frames (flags,
+    superposed, and the 8-bit delimiter) when a node read a dominant bit where it expected EOF or intermission."""
+    if not event.wire or event.error:
+        raise ValueError("recorded_wire draws a frame that went through and was run bit by bit (its BusEvent.wire)")
+    bit_ps = PS_PER_SECOND // bit_rate
+    count = (event.end_ps - event.start_ps) // bit_ps
+    times = [time - event.start_ps for time, _ in event.wire]
+
+    def level(bit: int) -> int:
+        middle = bit * bit_ps + bit_ps // 2
+        index = max(i for i, time in enumerate(times) if time <= middle)
+        return event.wire[index][1]
+
+    frame = encode_annotated(event.frame)
+    bits = [WireBit(level(i), bit.field, bit.stuff) for i, bit in enumerate(frame)]
+    after = [level(i) for i in range(len(frame), count)]
+    for value, run in groupby(after):
+        field = "overload flag" if value == 0 else "overload delimiter"
+        bits += [WireBit(value, field)] * len(list(run))
+    ax = _axes(ax, (14, 2.6))
+    _fields(ax, bits)
+    overload = sum(bit.field.startswith("overload") for bit in bits)
+    ax.set_title(f"{event.frame} from {event.sender}, as the wire carried it: {len(frame)} bits to the end of EOF"
+                 + (f", then {overload} bits of overload frame" if overload else ""))
     return _figure(ax)
 
 
@@ -310,4 +350,79 @@ def error_counter_history(samples: Sequence[tuple[float, int, int]], ax: Axes | 
     ax.set_ylabel("error counter")
     ax.set_title(f"error counters{' of ' + node if node else ''}")
     ax.legend(loc="lower right")
+    return _figure(ax)
+
+
+def error_states(ax: Axes | None = None) -> Figure:
+    """Fault confinement as a state diagram: error-active, error-passive and bus-off, the counters that move a node
+    between them, what it may do in each, and the COMSTAT bits (and PIR3.ERRIF) its firmware reads to see it."""
+    from matplotlib.patches import FancyArrowPatch, FancyBboxPatch
+
+    ax = _axes(ax, (13, 5.2))
+    boxes = {"error-active": 0.0, "error-passive": 5.6, "bus-off": 11.2}
+    says = {
+        "error-active": "error flags: 6 dominant bits\n(they destroy the frame for all)\n\n"
+                        f"TEC or REC > {WARNING - 1}: warning\nCOMSTAT.TXWARN / RXWARN, EWARN",
+        "error-passive": "error flags: 6 recessive bits:\nanother node's frame goes on\n(its own still ends)\n"
+                         f"waits 8 more bits after sending\n\nCOMSTAT.TXBP (TEC > {PASSIVE - 1})\n"
+                         f"COMSTAT.RXBP (REC > {PASSIVE - 1})",
+        "bus-off": "sends nothing, ACKs nothing,\nflags nothing\n\n\n"
+                   f"COMSTAT.TXBO (TEC > {BUS_OFF - 1})",
+    }
+    for state, x in boxes.items():
+        ax.add_patch(FancyBboxPatch((x, 0), 3.4, 3.2, boxstyle="round,pad=0.1", facecolor=STATE_COLOURS[state],
+                                    edgecolor="black", gid="state"))
+        ax.text(x + 1.7, 2.85, state, ha="center", va="center", fontsize=12, fontweight="bold")
+        ax.text(x + 1.7, 1.35, says[state], ha="center", va="center", fontsize=8.5)
+
+    def arrow(start: tuple[float, float], end: tuple[float, float], label: str, label_at: tuple[float, float],
+              bend: float = 0.0) -> None:
+        ax.add_patch(FancyArrowPatch(start, end, arrowstyle="-|>", mutation_scale=18, linewidth=1.5,
+                                     connectionstyle=f"arc3,rad={bend}", color="black", gid="transition"))
+        ax.text(*label_at, label, ha="center", va="center", fontsize=8.5, backgroundcolor="white", gid="condition")
+
+    arrow((3.6, 2.2), (5.4, 2.2), f"TEC > {PASSIVE - 1}\nor REC > {PASSIVE - 1}", (4.5, 2.75))
+    arrow((5.4, 1.0), (3.6, 1.0), f"TEC <= {PASSIVE - 1}\nand REC <= {PASSIVE - 1}", (4.5, 0.45))
+    arrow((9.2, 1.6), (11.0, 1.6), f"TEC > {BUS_OFF - 1}", (10.1, 2.0))
+    arrow((12.9, -0.2), (1.7, -0.2), f"after {RECOVERY_SEQUENCES} x {BUS_IDLE_BITS} recessive bits: TEC = REC = 0 "
+          "(the ECAN comes back by itself)", (7.3, -1.3), bend=-0.2)
+    ax.text(7.3, 3.9, "each of TXWARN, RXWARN, TXBP, RXBP, TXBO that rises sets PIR3.ERRIF; REC stops at "
+            f"{BUS_OFF - 1} and never takes a node bus-off", ha="center", fontsize=9, color="#444444")
+    ax.set_xlim(-0.4, 14.9)
+    ax.set_ylim(-2.0, 4.3)
+    ax.axis("off")
+    ax.set_title("error states: TEC and REC move a node between them (ISO 11898-1 fault confinement)")
+    return _figure(ax)
+
+
+def register_bits(name: str, value: int, ax: Axes | None = None) -> Figure:
+    """An 8-bit ECAN register as the data sheet draws it, bit 7 on the left: each bit's name and value, and each
+    field of several bits bracketed below with the value it holds (`appsim.chip.ecan.registers.BITFIELDS`)."""
+    from matplotlib.patches import Rectangle
+
+    if name not in BITFIELDS:
+        raise ValueError(f"no bit names for {name}: the registers with named bits are {', '.join(sorted(BITFIELDS))}")
+    if not 0 <= value <= 0xFF:
+        raise ValueError(f"{name} is an 8-bit register (0x00..0xFF), got {value!r}")
+    fields = BITFIELDS[name]
+    wide = {field: (shift, width) for field, (shift, width) in fields.items() if width > 1}
+    single = {shift: field for field, (shift, width) in fields.items() if width == 1}
+    ax = _axes(ax, (10, 1.9 if wide else 1.4))
+    for bit in range(8):
+        x = 7 - bit
+        level = value >> bit & 1
+        ax.add_patch(Rectangle((x, 0), 1, 1, facecolor="#cfe2f3" if level else "white", edgecolor="black", gid="bit"))
+        ax.text(x + 0.5, 0.72, single.get(bit, "-"), ha="center", va="center", fontsize=7.5)
+        ax.text(x + 0.5, 0.3, str(level), ha="center", va="center", fontsize=13, fontweight="bold")
+        ax.text(x + 0.5, 1.12, f"bit {bit}", ha="center", va="bottom", fontsize=7, color="grey")
+    for field, (shift, width) in wide.items():
+        x0, x1 = 8 - shift - width, 8 - shift
+        held = value >> shift & (1 << width) - 1
+        ax.plot([x0 + 0.08, x0 + 0.08, x1 - 0.08, x1 - 0.08], [-0.1, -0.25, -0.25, -0.1], color="black", linewidth=1)
+        ax.text((x0 + x1) / 2, -0.35, f"{field}<{width - 1}:0> = {held:0{width}b} ({held})", ha="center", va="top",
+                fontsize=8.5, gid="field")
+    ax.set_xlim(-0.1, 8.1)
+    ax.set_ylim(-0.8 if wide else -0.1, 1.5)
+    ax.axis("off")
+    ax.set_title(f"{name} = 0x{value:02X}", fontsize=11)
     return _figure(ax)

@@ -27,7 +27,7 @@ TIME_SLACK_S = 0.035              # a line can wait for the one before it (the s
 FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD)  (DATA|RTR )  DLC (\d+)"
                         r"((?:  [0-9A-F]{2}(?: [0-9A-F]{2})*)?)$")
 LOST_COUNT = re.compile(r"lost (\d+) frames?")
-FORMAT_HELP = ("docs/monitor-format.md: `    0.052661  0x088  STD  DATA  DLC 5  01 02 03 02 9A`, time in "
+FORMAT_HELP = ("docs/monitor-format.md: `    0.053946  0x088  STD  DATA  DLC 5  01 02 03 02 00`, time in "
                "seconds, 0x and 3 (or 8) hex digits, STD/XTD, DATA/RTR, DLC n, the data bytes")
 
 

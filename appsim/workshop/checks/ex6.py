@@ -115,7 +115,8 @@ def _rxb1(trial: Trial, frames) -> CheckResult:
     intruders = [e for e in frames if e.frame.can_id != own and trial.reception(e).startswith("RXB1")]
     if intruders:
         return CheckResult(RXB1, False, f"RXB1 took {listing(intruders)}: {trial.acceptance('RXB1')}. RX_Mask1 "
-                                        "must compare every ID bit that tells your ID from the others (0x7FF) and "
+                                        "must be a mask that tells your ID from every ID on this bus (0x7FF is the "
+                                        "safe one; 0x0FF passes here by luck) and "
                                         f"RX_Filter2 = MESSAGE_ID1 = {hex_id(own)}: check that RXB1's MASK is set "
                                         "correctly (see the TODO).")
     if misplaced:
