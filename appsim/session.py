@@ -16,12 +16,13 @@ import can
 from appsim.board.app023 import APP023
 from appsim.board.usbcdc import UsbCdc
 from appsim.bus.link import BusLink
-from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, cannot_write, error_counters, summary
+from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, error_counters, summary
 from appsim.bus.realtime import WallClock
 from appsim.bus.waveform import WaveformLog
 from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
 from appsim.firmware.loader import constants, load_firmware
+from appsim.output import OutputFile, cannot_write, check_distinct
 from appsim.sim import PS_PER_SECOND, Simulator, ps
 from appsim.workshop.checks.demo1 import FRAME_LINE, LOST_COUNT
 from appsim.workshop.classroom import Classroom, station_defines
@@ -60,23 +61,30 @@ class Progress:
 class Session:
     """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time.
 
-    Its files (`logs`: the --log paths, then the --vcd waveform) are opened first, so a path that cannot be written
-    stops the command before anything runs (`OutputError`); each gets every event as the bus carries it. A session is
-    closed (files ended, link closed and its report printed) when its `with` block ends."""
+    Its files (`logs`: (option, path) of each log, then the --vcd waveform, then the `picture` written at the end)
+    are checked first: two that name one file, or one that names the firmware it runs, stop the command before
+    anything runs (`OutputError`), as does a path that cannot be written; each log gets every event as the bus carries
+    it. A session is closed (files ended, link closed and its report printed) when its `with` block ends."""
 
-    def __init__(self, args: argparse.Namespace, out: TextIO, *, logs: Sequence[Path] = ()):
+    def __init__(self, args: argparse.Namespace, out: TextIO, *, logs: Sequence[tuple[str, Path]] = (),
+                 picture: tuple[str, Path] | None = None):
         self.sim = Simulator()
         self.bus = Bus(self.sim, CLASSROOM_BIT_RATE)
         self.out = out
         self.link: BusLink | None = None
         self.trace = LiveTrace(self.bus)
         self.logs: list[EventFile] = []
+        self.picture: OutputFile | None = None
         self.reported: set[str] = set()          # boards whose stop was reported
+        vcd = getattr(args, "vcd", None)
+        check_distinct([*logs, ("--vcd", vcd), *([picture] if picture else [])], firmware_read(args))
         try:
-            for path in logs:
+            for _, path in logs:
                 self._keep(TraceLog(path))
-            if getattr(args, "vcd", None):
-                self._keep(WaveformLog(args.vcd, self.bus))
+            if vcd:
+                self._keep(WaveformLog(vcd, self.bus))
+            if picture:
+                self.picture = OutputFile(picture[1], keep_until_written=True)
             if getattr(args, "interface", None):
                 try:
                     self.link = BusLink(self.bus, interface=args.interface, channel=args.channel)
@@ -144,9 +152,12 @@ class Session:
         print(summary(self.bus), file=self.out)
 
     def print_written(self) -> None:
-        """What each of the session's files holds, now that the run is over."""
+        """What each of the session's files holds, now that the run is over (and what a FIFO's reader did not get)."""
         for log in self.logs:
-            print(f"wrote {log.path} ({log.kind}, {log.written} frames)", file=self.out)
+            log.close()
+            losses = log.losses()
+            print(f"wrote {log.path} ({log.kind}, {log.written} frames){'; ' + losses if losses else ''}",
+                  file=self.out)
 
     def report_failures(self) -> None:
         """Say once, for each board whose firmware is no longer running, which file it ran and why it stopped, with
@@ -163,13 +174,16 @@ class Session:
 
     def interrupted(self) -> str:
         """What a Ctrl-C leaves: where the run stopped and what the logs hold."""
-        kept = "".join(f"; {log.path} holds its first {log.written} frames" for log in self.logs)
+        kept = "".join(f"; {log.path} holds its first {log.written} frames"
+                       + (f" ({losses})" if (losses := log.losses()) else "") for log in self.logs)
         return f"interrupted (Ctrl-C) at {self.sim.now / PS_PER_SECOND:.3f} s of simulated time{kept}"
 
     def close(self) -> None:
         """End the logs, close the link (its report says what it carried and refused)."""
         for log in self.logs:
             log.close()
+        if self.picture is not None:
+            self.picture.close()
         if self.link is not None:
             print(self.link.report(), file=self.out)
             self.link.close()
@@ -186,19 +200,28 @@ Body = Callable[[argparse.Namespace, Session], None]
 Command = Callable[[argparse.Namespace], int]
 
 
-def logs_asked(args: argparse.Namespace) -> list[Path]:
+def logs_asked(args: argparse.Namespace) -> list[tuple[str, Path]]:
     """The logs `--log` names, if any."""
-    return list(args.log or [])
+    return [("--log", path) for path in args.log or []]
 
 
-def session_command(logs: Callable[[argparse.Namespace], list[Path]] = logs_asked) -> Callable[[Body], Command]:
-    """A command that runs a session: its `logs` are checked before anything runs (an `OutputError` for the caller);
-    a board that stopped is reported and makes the exit status 1; after Ctrl-C, the KeyboardInterrupt for the caller
-    says where the run stopped and what the logs hold."""
+def firmware_read(args: argparse.Namespace) -> list[tuple[str, Path | None]]:
+    """The firmware files a command reads (no output may be one of them)."""
+    board = getattr(args, "firmware", None)
+    join = getattr(args, "join", None)
+    return [("FIRMWARE", Path(board) if board else None), ("--join", Path(join) if join else None)]
+
+
+def session_command(logs: Callable[[argparse.Namespace], list[tuple[str, Path]]] = logs_asked,
+                    picture: Callable[[argparse.Namespace], tuple[str, Path]] | None = None
+                    ) -> Callable[[Body], Command]:
+    """A command that runs a session: its `logs` (and the `picture` it saves at the end) are checked before anything
+    runs (an `OutputError` for the caller); a board that stopped is reported and makes the exit status 1; after Ctrl-C,
+    the KeyboardInterrupt for the caller says where the run stopped and what the logs hold."""
     def decorate(body: Body) -> Command:
         @functools.wraps(body)
         def command(args: argparse.Namespace) -> int:
-            with Session(args, sys.stdout, logs=logs(args)) as session:
+            with Session(args, sys.stdout, logs=logs(args), picture=picture(args) if picture else None) as session:
                 try:
                     body(args, session)
                 except KeyboardInterrupt:
@@ -208,18 +231,6 @@ def session_command(logs: Callable[[argparse.Namespace], list[Path]] = logs_aske
                 return 1 if session.reported else 0
         return command
     return decorate
-
-
-def check_writable(path: Path) -> None:
-    """An `OutputError` now if `path` could not be written later; the file is left as it was."""
-    existed = path.exists()
-    try:
-        with path.open("ab"):
-            pass
-    except OSError as error:
-        raise cannot_write(path, error) from None
-    if not existed:
-        path.unlink()
 
 
 def print_lcds(boards: list[APP023], out: TextIO) -> None:
@@ -232,8 +243,11 @@ def print_lcds(boards: list[APP023], out: TextIO) -> None:
             print("   ".join(f"{line:<23}" for line in lines), file=out)
 
 
-def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
-    """One PNG with every board's LCD, named, as they would look on the desks."""
+def save_lcd_picture(boards: list[APP023], file: OutputFile) -> str:
+    """One PNG with every board's LCD, named, as they would look on the desks, into `file`: what it holds, in a few
+    words."""
+    import io
+
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -247,13 +261,18 @@ def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
         board.glcd.picture(ax=ax)
         ax.set_title(board.name, fontsize=10)
     figure.tight_layout()
+    png = io.BytesIO()
     try:
-        figure.savefig(path, dpi=100)
-    except OSError as error:
-        raise cannot_write(path, error) from None
+        figure.savefig(png, format="png", dpi=100)
     finally:
         plt.close(figure)
-    return path
+    file.write(png.getvalue())
+    try:
+        file.commit()
+        file.close()
+    except OSError as error:
+        raise cannot_write(file.path, error) from None
+    return "every LCD" if file.delivered else "every LCD, but its reader did not take the picture whole"
 
 
 def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
@@ -265,19 +284,18 @@ def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
     return classroom
 
 
-def _demo_logs(args: argparse.Namespace) -> list[Path]:
+def _demo_logs(args: argparse.Namespace) -> list[tuple[str, Path]]:
     """The demo's --out folder, made if need be, and the logs it holds."""
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise cannot_write(args.out, error) from None
-    return [args.out / "trace.log", args.out / "trace.asc"]
+    return [("--out", args.out / "trace.log"), ("--out", args.out / "trace.asc")]
 
 
-@session_command(logs=_demo_logs)
+@session_command(logs=_demo_logs, picture=lambda args: ("--out", args.out / "lcds.png"))
 def cmd_demo(args: argparse.Namespace, session: Session) -> None:
     out = session.out
-    check_writable(args.out / "lcds.png")
     classroom = workshop_in_progress(session.bus, args.seed)
     print("CAN Workshop 202, simulated: the master console and six APP023 stations on one 125 kbit/s bus.\n"
           "Station k is working on exercise k: Ex1 loopback (off the bus), Ex2 periodic data, Ex3 filters,\n"
@@ -288,10 +306,11 @@ def cmd_demo(args: argparse.Namespace, session: Session) -> None:
     session.print_trace()
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
-    picture = save_lcd_picture(classroom.boards, args.out / "lcds.png")
+    assert session.picture is not None
+    holds = save_lcd_picture(classroom.boards, session.picture)
     print("", file=out)
     session.print_written()
-    print(f"wrote {picture} (every LCD)", file=out)
+    print(f"wrote {session.picture.path} ({holds})", file=out)
 
 
 @session_command()

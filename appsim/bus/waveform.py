@@ -55,7 +55,6 @@ class WaveformLog(EventFile):
 
     def _finish(self) -> None:
         self._line.end(self.bus.sim.now // self._tick_ps)
-        self._file.commit()
 
 
 def write_waveform(bus: Bus, path: str | Path) -> Path:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import base64
 import collections
 import dataclasses
+import functools
 import json
 import os
 import random
@@ -16,12 +17,13 @@ import signal
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, TextIO
 
-from appsim.errors import GradeError, SandboxUnavailable
+from appsim.errors import GradeError, OutputError, SandboxUnavailable
+from appsim.output import cannot_write, check_distinct
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
 from appsim.workshop.grading.results import (
     Record,
@@ -55,6 +57,11 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
     if sys.platform == "win32":
         raise GradeError("appsim grade runs on Linux (or macOS with --trusted); on Windows, run it in WSL")
     results = results or default_results([Path(p) for p in paths])
+    try:
+        check_distinct([("--json", results), ("--csv", csv_path), ("--gradescope", gradescope_path)],
+                       [("PATH", Path(p)) for p in paths])
+    except OutputError as error:
+        raise GradeError(str(error)) from None
     check_output(results, "the results file (--json)")
     if csv_path is not None:
         check_output(csv_path, "the gradebook (--csv)")
@@ -78,7 +85,7 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
                   + ("; NOT ISOLATED (--trusted)" if trusted else ""), file=out, flush=True)
             for number, record in enumerate(pool.grade(todo, seed, kit), start=1):
                 with _ctrl_c_held():                # a record kept is a record reported, and the other way round
-                    book.append(record)
+                    _writing(results, functools.partial(book.append, record))
                     previous[record["submission"]] = record
                     print(f"[{kept + number}/{len(submissions)}] {summary_line(record)}", file=out, flush=True)
             book.rewrite(previous.values())
@@ -86,15 +93,25 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
             book.close()
     records = [previous[s.name] for s in submissions]
     if csv_path is not None:
-        write_csv(csv_path, records)
+        _writing(csv_path, functools.partial(write_csv, csv_path, records))
     if gradescope_path is not None:
-        write_gradescope(gradescope_path, records)
+        _writing(gradescope_path, functools.partial(write_gradescope, gradescope_path, records))
     total, best = sum(r["score"] for r in records), sum(r["max_score"] for r in records)
     print(f"graded {len(records)} submission(s): {total}/{best} points in all, mean "
           f"{total / max(1, len(records)):.1f}/{records[0]['max_score'] if records else 0}; seed {seed}; results in "
           f"{results}" + (f", gradebook {csv_path}" if csv_path else "")
           + (f", Gradescope {gradescope_path}" if gradescope_path else ""), file=out)
     return records
+
+
+def _writing(path: Path, write: Callable[[], None]) -> None:
+    """`write()`, a failure said in the workshop's words (a full disk: the grades so far are kept, the same command
+    again resumes)."""
+    try:
+        write()
+    except OSError as error:
+        raise GradeError(f"{cannot_write(path, error)}. The grades so far are kept in the results file: make room and "
+                         "run the same command again to resume") from None
 
 
 def _walls(secrets: Sequence[Path | None]) -> Isolation:
