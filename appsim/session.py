@@ -121,7 +121,11 @@ class Session:
                       "(Ctrl-C stops)", file=self.out)
             if live:
                 clock.add_poller(lambda: self._show(self.trace.new_lines()))
-            clock.run(seconds)
+            try:
+                clock.run(seconds)
+            finally:
+                if late := clock.lateness():
+                    print(f"the run fell {late}", file=self.out)
         finally:
             if progress:
                 progress.done()

@@ -7,10 +7,14 @@ tolerance loses the bit grid within a few bits whatever it does).
 """
 from __future__ import annotations
 
+import dataclasses
 import heapq
 from dataclasses import dataclass, field
+from functools import lru_cache
+from itertools import chain, count, zip_longest
+from operator import attrgetter
 
-from appsim.can.bits import crc15, encode_annotated
+from appsim.can.bits import WireBit, crc15, encode_annotated
 from appsim.can.frame import CanFrame
 
 ERROR_FLAG_BITS = 6                 # an error or overload flag; a passive one ends after 6 equal bits
@@ -87,6 +91,8 @@ class Outcome:
     errors: list[str] = field(default_factory=list)    # "stuff error at bit 23: ...", in the order it saw them
     assembled: Assembled | None = None                 # for error-recognition mode, at its first error
     flag_at_ps: int | None = None        # where its first error flag started
+    fired: list[Injection] = field(default_factory=list)   # its injections that took effect (see `_Node._fire`)
+    sampled: int = 0                     # the bits it sampled, from SOF until the bus was idle
 
 
 @dataclass(slots=True)
@@ -104,22 +110,58 @@ class Run:
 
 # Phases of a node's protocol state machine.
 _FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE = range(6)
+_ANY_BIT = ("crc", "ack")           # injected at the place the protocol gives them, whatever their `bit`
+_SAMPLED = ("bit", "form")          # change what the node samples at their bit
 
 
-class _Node:
-    """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
+@lru_cache(maxsize=1024)
+def _transmitted(frame: CanFrame) -> tuple[WireBit, ...]:
+    return tuple(encode_annotated(frame))
+
+
+class _Clocked:
+    """A station's bit clock, hard-synchronised on SOF, and the levels it drives, bit by bit from SOF."""
 
     def __init__(self, station: Station, sof_ps: int):
         self.station = station
-        self.out = Outcome(station.name)
         self.t0 = sof_ps
+        self.levels: list[int] = []
+        self.k = 0                            # the bit being sampled, in its own bits from SOF
+
+    def sample_time(self) -> int:
+        return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
+
+    def bit_end(self) -> int:
+        return self.t0 + (self.k + 1) * self.station.bit_ps
+
+    def level_at(self, time: int) -> int:
+        k = (time - self.t0) // self.station.bit_ps
+        return self.levels[k] if 0 <= k < len(self.levels) else 1
+
+
+class _Node(_Clocked):
+    """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
+
+    def __init__(self, station: Station, sof_ps: int):
+        super().__init__(station, sof_ps)
+        self.out = Outcome(station.name)
+        self.followers: list[_Follower] = []
         self.tec, self.rec = station.tec, station.rec
-        self.levels: list[int] = []           # what it drives, bit by bit from SOF
-        self.tx = encode_annotated(station.frame) if station.frame is not None else []
+        self.tx = _transmitted(station.frame) if station.frame is not None else ()
+        # its injections, by (kind, bit) (bit None: `_ANY_BIT`), in the order given; "dominant" ones by themselves
+        self.injected: dict[tuple[str, int | None], list[Injection]] = {}
+        for injection in station.injections:
+            if injection.kind != "dominant":
+                kind = "sampled" if injection.kind in _SAMPLED else injection.kind
+                where = None if injection.kind in _ANY_BIT else injection.bit
+                self.injected.setdefault((kind, where), []).append(injection)
+        self.dominant = tuple(i for i in station.injections if i.kind == "dominant")
+        self.armed = bool(station.injections)
+        self._by_phase = (self._frame_bit, self._flag_bit, self._after_flag_bit, self._delimiter_bit,
+                          self._intermission_bit, self._idle_bit)       # what it does with a bit, by `phase`
         self.arbitration = _ARBITRATION_FIELDS[station.frame is not None and station.frame.extended]
         self.transmitting = bool(self.tx)           # its role in the frame: stays set through its error frames
         self.levels.append(0 if self.transmitting else 1)
-        self.k = 0                            # the bit being sampled, in its own bits from SOF
         self.phase = _FRAME
         # the frame as received: destuffing and the fields read so far
         self.last, self.run = -1, 0
@@ -140,17 +182,6 @@ class _Node:
         self.idle_ps = 0
         self.end_ps = 0
 
-    # ----------------------------------------------------------------- clock
-    def sample_time(self) -> int:
-        return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
-
-    def bit_end(self) -> int:
-        return self.t0 + (self.k + 1) * self.station.bit_ps
-
-    def level_at(self, time: int) -> int:
-        k = (time - self.t0) // self.station.bit_ps
-        return self.levels[k] if 0 <= k < len(self.levels) else 1
-
     @property
     def passive(self) -> bool:
         return self.station.listen_only or self.tec > 127 or self.rec > 127
@@ -158,26 +189,32 @@ class _Node:
     # ----------------------------------------------------------------- one sample
     def sample(self, wire: int) -> int:
         """Read the wire at this bit's sample point; return what to drive in the next bit."""
-        for injection in self.station.injections:
-            if injection.bit == self.k and injection.kind in ("bit", "form"):
-                wire = 1 - wire if injection.kind == "bit" else 0
+        for injection in self.injected.get(("sampled", self.k), ()) if self.injected else ():
+            read = 1 - wire if injection.kind == "bit" else 0
+            if read != wire:
+                self._fire(injection)
+            wire = read
         level = self._protocol_bit(wire)
-        for injection in self.station.injections:
-            if injection.kind == "dominant" and injection.bit <= self.k + 1 < injection.bit + injection.length:
+        for injection in self.dominant:
+            if injection.bit <= self.k + 1 < injection.bit + injection.length:
+                self._fire(injection)
                 level = 0
         return level
 
+    def step(self, wire: int) -> None:
+        """Sample bit k, decide what to drive in the next, move on to it."""
+        self.levels.append(self.sample(wire) if self.armed else self._by_phase[self.phase](wire))
+        self.k += 1
+
+    def _fire(self, injection: Injection) -> None:
+        """An injection took effect: it changed what this node read or drove, or made it see its error."""
+        if not any(fired is injection for fired in self.out.fired):
+            self.out.fired.append(injection)
+
     def _protocol_bit(self, wire: int) -> int:
-        if self.phase == _FRAME:
-            return self._frame_bit(wire)
-        if self.phase == _FLAG:
-            return self._flag_bit(wire)
-        if self.phase == _AFTER_FLAG:
-            return self._after_flag_bit(wire)
-        if self.phase == _DELIMITER:
-            return self._delimiter_bit(wire)
-        if self.phase == _INTERMISSION:
-            return self._intermission_bit(wire)
+        return self._by_phase[self.phase](wire)
+
+    def _idle_bit(self, wire: int) -> int:
         if wire == 0:          # idle, and a dominant bit: someone's flag or frame, read as a new SOF
             self._restart_frame()
             return self._frame_bit(wire)
@@ -213,7 +250,11 @@ class _Node:
         return self._tail_bit(wire)
 
     def _injected(self, kind: str, bit: int | None = None) -> bool:
-        return any(i.kind == kind and bit in (None, i.bit) for i in self.station.injections)
+        """Whether an injection of `kind` (at `bit`) makes this node see its error here; it takes effect if so."""
+        hits = self.injected.get((kind, bit)) if self.injected else None
+        for injection in hits or ():
+            self._fire(injection)
+        return bool(hits)
 
     def _next_level(self) -> int:
         """What this node drives in the next frame bit (a receiver: recessive, or dominant in the ACK slot)."""
@@ -225,7 +266,7 @@ class _Node:
         return 1
 
     def _stuffed_bit(self, wire: int) -> int:
-        if self._injected("stuff", self.k):
+        if self.armed and self._injected("stuff", self.k):
             return self._error("stuff", "six equal bits (injected)")
         if self.run == 5:                 # a stuff bit
             if wire == self.last:
@@ -240,7 +281,7 @@ class _Node:
         self.last = wire
         self.bits.append(wire)
         count = len(self.bits)
-        if self.need is None and count == (39 if self.bits[13:14] == [1] else 19):   # the DLC is in
+        if self.need is None and count == (39 if count > 13 and self.bits[13] == 1 else 19):   # the DLC is in
             dlc = _value(self.bits[count - 4:count])
             remote = self.bits[12] if count == 19 else self.bits[32]
             self.need = count + (0 if remote else 8 * min(dlc, 8)) + 15
@@ -400,39 +441,192 @@ def _value(bits: list[int]) -> int:
     return value
 
 
-def run_frame(sof_ps: int, stations: list[Station]) -> Run:
-    """Every station hard-synchronised on the SOF at `sof_ps`, bit by bit until all are idle again."""
-    nodes = [_Node(station, sof_ps) for station in stations]
-    queue = [(node.sample_time(), index) for index, node in enumerate(nodes)]
-    heapq.heapify(queue)
-    first_error_ps: int | None = None
-    first_error = first_error_by = ""
-    limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
-    while queue:
-        time, index = heapq.heappop(queue)
-        if all(n.phase == _IDLE for n in nodes):
-            break
-        if time > limit:
+class _Follower(_Clocked):
+    """A receiver whose station is its `leader`'s but for the name (same mode, clock and counters, nothing to send, no
+    injection): it reads what the leader reads, so it does what the leader does, and the leader's engine decides for
+    both. It samples after the leader, in the same bit; what it drove is the leader's levels (`levels` at the end)."""
+
+    def __init__(self, station: Station, sof_ps: int, leader: _Node):
+        super().__init__(station, sof_ps)
+        self.leader = leader
+        self.phase = _FRAME
+        leader.followers.append(self)
+
+    def step(self, wire: int) -> None:
+        """Sample bit k as the leader did, and move on to the next."""
+        self.phase = self.leader.phase
+        self.k += 1
+
+    def outcome(self) -> Outcome:
+        self.levels = self.leader.levels[:self.k + 1]
+        outcome = Outcome(*_OUTCOME(self.leader.out))
+        outcome.name, outcome.errors, outcome.fired = self.station.name, list(outcome.errors), []
+        outcome.sampled = self.k
+        return outcome
+
+
+_Engine = _Node | _Follower
+_BEHAVIOUR = attrgetter(*(f.name for f in dataclasses.fields(Station) if f.name != "name"))    # all it does hangs on
+_OUTCOME = attrgetter(*(f.name for f in dataclasses.fields(Outcome)))
+
+
+def _engines(stations: list[Station], sof_ps: int) -> list[_Engine]:
+    """A protocol engine per station, but one for receivers alike (`_Follower`)."""
+    engines: list[_Engine] = []
+    leaders: dict[tuple[object, ...], _Node] = {}
+    for station in stations:
+        alike = _BEHAVIOUR(station) if station.frame is None else None
+        leader = leaders.get(alike) if alike is not None else None
+        if leader is not None:
+            engines.append(_Follower(station, sof_ps, leader))
+            continue
+        node = _Node(station, sof_ps)
+        if alike is not None:
+            leaders[alike] = node
+        engines.append(node)
+    return engines
+
+
+def _level(time: int, leaders: list[_Node]) -> int:
+    """The wire at `time`: dominant if any station drives dominant (a follower drives what its leader does)."""
+    for leader in leaders:
+        if leader.level_at(time) == 0:
+            return 0
+    return 1
+
+
+class _Run:
+    """One frame being run: its stations' engines, how many are not idle yet, and the first error flag."""
+
+    def __init__(self, sof_ps: int, stations: list[Station]):
+        self.sof_ps = sof_ps
+        self.engines = _engines(stations, sof_ps)
+        self.leaders = [engine for engine in self.engines if isinstance(engine, _Node)]
+        self.busy = len(self.engines)
+        self.limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
+        self.first_error_ps: int | None = None
+        self.first_error = self.first_error_by = ""
+
+    def sample(self, time: int, engine: _Engine, wire: int) -> bool:
+        """`engine` samples `wire` at `time`, unless every station is idle already: whether it did."""
+        if not self.busy:
+            return False
+        if time > self.limit:
             raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
-        node = nodes[index]
-        wire = min(other.level_at(time) for other in nodes)
-        errors = len(node.out.errors)
-        node.levels.append(node.sample(wire))
-        if first_error_ps is None and len(node.out.errors) > errors:
-            first_error_ps, first_error, first_error_by = node.out.flag_at_ps, node.out.errors[0], node.station.name
-        node.k += 1
-        heapq.heappush(queue, (node.sample_time(), index))
-    return Run({n.station.name: n.out for n in nodes}, _wire(nodes, sof_ps), first_error_ps, first_error,
-               first_error_by, max(n.end_ps for n in nodes), max(n.idle_ps for n in nodes))
+        idle = engine.phase == _IDLE
+        if self.first_error_ps is None and isinstance(engine, _Node):
+            self._step_watched(engine, wire)
+        else:
+            engine.step(wire)
+        self.busy += idle - (engine.phase == _IDLE)
+        return True
+
+    def _step_watched(self, node: _Node, wire: int) -> None:
+        """`node.step(wire)`, and the run's first error if it detects one (a follower's leader came first)."""
+        errors = node.out.errors
+        before = len(errors)
+        node.step(wire)
+        if len(errors) > before:
+            self.first_error_ps, self.first_error, self.first_error_by = node.out.flag_at_ps, errors[0], node.out.name
+
+    def in_lock_step(self) -> None:
+        """Every station has the bus's bit time: bit by bit, in each bit the stations in the order of their sample
+        points, all reading the one level the wire has in that bit.
+
+        A bit that starts with no station idle cannot end the run before its last sample (a station after the one
+        sampling would still be busy): there only the leaders run, and their followers catch up before the next bit
+        that starts with a station idle, where every station samples in turn."""
+        order = sorted(self.engines, key=lambda engine: engine.station.sample_ps)     # stable: at one time, as given
+        leading = [engine for engine in order if isinstance(engine, _Node)]
+        everyone = len(self.engines)
+        bit_ps, leaders, behind = self.engines[0].station.bit_ps, self.leaders, 0
+        for k in count():
+            wire = 1
+            for leader in leaders:
+                if leader.levels[k] == 0:
+                    wire = 0
+                    break
+            start = self.sof_ps + k * bit_ps
+            if self.busy == everyone:
+                for leader in leading:
+                    if start + leader.station.sample_ps > self.limit:
+                        raise RuntimeError("the bit engine found a frame that never ends: a bug in "
+                                           "appsim.bus.bitlevel")
+                    if self.first_error_ps is None:
+                        self._step_watched(leader, wire)
+                    else:
+                        leader.step(wire)
+                    if leader.phase == _IDLE:
+                        self.busy -= 1 + len(leader.followers)
+                behind += 1
+                continue
+            for follower in (engine for engine in order if isinstance(engine, _Follower)):
+                follower.phase, follower.k = follower.leader.phase, follower.k + behind
+            behind = 0
+            for engine in order:
+                if not self.sample(start + engine.station.sample_ps, engine, wire):
+                    return
+
+    def by_sample_time(self) -> None:
+        """Stations at their own bit times: in the order of their sample times (at one time, in the order given),
+        each reading the wire as every station drives it then."""
+        engines = self.engines
+        queue = [(engine.sample_time(), index) for index, engine in enumerate(engines)]
+        heapq.heapify(queue)
+        wire_at, wire = -1, 1
+        while True:
+            time, index = heapq.heappop(queue)
+            if time != wire_at:                 # what a station sampled at `time` does not change the wire then
+                wire_at, wire = time, _level(time, self.leaders)
+            if not self.sample(time, engines[index], wire):
+                return
+            heapq.heappush(queue, (engines[index].sample_time(), index))
+
+    def result(self, one_clock: bool) -> Run:
+        outcomes = {}
+        for engine in self.engines:
+            if isinstance(engine, _Follower):
+                outcomes[engine.station.name] = engine.outcome()
+            else:
+                engine.out.sampled = engine.k
+                outcomes[engine.station.name] = engine.out
+        leaders = self.leaders
+        return Run(outcomes, _wire(leaders, self.sof_ps, one_clock), self.first_error_ps, self.first_error,
+                   self.first_error_by, max(n.end_ps for n in leaders), max(n.idle_ps for n in leaders))
 
 
-def _wire(nodes: list[_Node], sof_ps: int) -> list[tuple[int, int]]:
-    """The wire as (time, level) at each change: dominant wherever any node drives dominant."""
-    edges = sorted({node.t0 + k * node.station.bit_ps for node in nodes for k in range(len(node.levels) + 1)})
+def run_frame(sof_ps: int, stations: list[Station]) -> Run:
+    """Every station hard-synchronised on the SOF at `sof_ps`, bit by bit until all are idle again.
+
+    Stations sample in the order of their sample times (at one time, in the order given), each reading the wire as
+    all stations drive it then; stations at one bit rate do so in lock step, and a receiver alike another follows it:
+    two shortcuts that leave every bit as it was."""
+    run = _Run(sof_ps, stations)
+    one_clock = all(station.bit_ps == stations[0].bit_ps for station in stations)
+    if one_clock:
+        run.in_lock_step()
+    else:
+        run.by_sample_time()
+    return run.result(one_clock)
+
+
+def _wire(leaders: list[_Node], sof_ps: int, one_clock: bool) -> list[tuple[int, int]]:
+    """The wire as (time, level) at each change: dominant wherever any station drives dominant (followers drive what
+    their leaders do)."""
     changes = []
     level = 1
+    if one_clock:
+        bit_ps = leaders[0].station.bit_ps
+        levels = chain(map(min, zip_longest(*(leader.levels for leader in leaders), fillvalue=1)), (1,))
+        for k, now in enumerate(levels):
+            if now != level:
+                changes.append((sof_ps + k * bit_ps, now))
+                level = now
+        return changes
+    edges = sorted({leader.t0 + k * leader.station.bit_ps for leader in leaders
+                    for k in range(len(leader.levels) + 1)})
     for time in edges:
-        now = min(node.level_at(time) for node in nodes)
+        now = _level(time, leaders)
         if now != level:
             changes.append((time, now))
             level = now

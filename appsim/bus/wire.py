@@ -7,7 +7,9 @@ bit (`appsim.bus.bitlevel`), each node seeing the wire at its own sample points.
 from __future__ import annotations
 
 import functools
+from array import array
 from collections import deque
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Protocol, TypeVar
@@ -24,6 +26,7 @@ SUSPEND_TRANSMISSION_BITS = 8
 BUS_IDLE_BITS = 11                  # mode changes, bus-off recovery: 11 consecutive recessive bits
 
 AnyNode = TypeVar("AnyNode", bound=Node)
+AnyPart = TypeVar("AnyPart", bound=Hashable)
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,13 +41,18 @@ class BusEvent:
     error: str = ""                  # "" for a good frame, else what went wrong, in CAN terms
     received: tuple[tuple[str, str], ...] = ()   # (node, what its acceptance logic did)
     # Not part of the event's repr: the bus bit (SOF = 0) where the first error flag starts (None: no flag), and for
-    # a frame run bit by bit, the wire as a logic analyser records it, (time, level) at each change from SOF.
+    # a frame run bit by bit, the wire as a logic analyser records it (`wire_changes`), kept small: the times (ps after
+    # `start_ps`, 8-byte integers) at which its level changes, recessive before SOF, dominant after the first ...
     flag_at_bit: int | None = field(default=None, repr=False, compare=False)
-    wire: tuple[tuple[int, int], ...] = field(default=(), repr=False, compare=False)
+    wire: bytes = field(default=b"", repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
         return not self.error
+
+    def wire_changes(self) -> list[tuple[int, int]]:
+        """The wire of a frame run bit by bit as (time in ps, level) at each change, from SOF (dominant)."""
+        return [(self.start_ps + offset, number % 2) for number, offset in enumerate(array("q", self.wire))]
 
     def __str__(self) -> str:
         time = f"{self.end_ps / PS_PER_SECOND:12.6f}"       # when receivers have it, as the trace and logs say
@@ -126,9 +134,7 @@ class _NodePort(_Port):
         return self.controller.rec
 
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
-        timing = self.controller.bit_timing()
-        bit_ps = bus_bit_ps if self.rate_ok else timing.bit_time_ps(self.controller.fosc)
-        return bit_ps, int(bit_ps * timing.sample_point)
+        return _clock(self.controller.bit_timing(), self.controller.fosc, bus_bit_ps, self.rate_ok)
 
     def pending(self) -> tuple[str, CanFrame] | None:
         buffer = self.controller.next_transmission()
@@ -154,6 +160,13 @@ class _NodePort(_Port):
 
     def activity(self) -> None:
         self.controller.bus_activity()
+
+
+@functools.lru_cache(maxsize=256)
+def _clock(timing: BitTiming, fosc: int, bus_bit_ps: int, rate_ok: bool) -> tuple[int, int]:
+    """A node's bit time and sample point in ps: the bus's bit time when its rate is within tolerance."""
+    bit_ps = bus_bit_ps if rate_ok else timing.bit_time_ps(fosc)
+    return bit_ps, int(bit_ps * timing.sample_point)
 
 
 class Outside(Protocol):
@@ -237,6 +250,7 @@ class Bus:
         self._arbitration: Timer | None = None
         self._idle_timer: Timer | None = None
         self._injections: list[list] = []     # [Injection, frames still to fire in]
+        self._kept: dict[object, object] = {}   # what events repeat (frames, outcomes, wires), stored once
 
     # ------------------------------------------------------------------ nodes
     def attach(self, node: AnyNode) -> AnyNode:
@@ -334,8 +348,8 @@ class Bus:
         def done() -> None:
             controller.transmission_succeeded(buffer)       # the ACK comes from the module itself
             reception = controller.frame_received(frame)
-            self.loopback_trace.append(BusEvent(start, end, port.name, frame, (port.name,), "",
-                                                ((port.name, str(reception)),)))
+            self.loopback_trace.append(BusEvent(start, end, port.name, self._once(frame), self._once((port.name,)),
+                                                "", self._once(((port.name, str(reception)),))))
             self.sim.call_at(port.loop_busy_until, lambda: self._loopback(port))
 
         self.sim.call_at(end, done)
@@ -410,7 +424,8 @@ class Bus:
             for _, port, twin, _ in [(None, sender, buffer, None)] + same_id:
                 port.succeeded(twin)
                 self._after_transmit(port)
-            self.trace.append(BusEvent(start, end, sender.name, frame, ackers, "", tuple(received)))
+            self.trace.append(BusEvent(start, end, sender.name, self._once(frame), self._once(ackers), "",
+                                       self._once(tuple(received))))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_frame)
@@ -482,11 +497,21 @@ class Bus:
                                            and run.outcomes[p.name].received is not None)
             if isinstance(sender, _LinkPort) and not error:
                 acked += (sender.name,)
-            self.trace.append(BusEvent(start, end, sender.name, frame, acked, error,
-                                       tuple(received), flag_at_bit, tuple(run.wire)))
+            self.trace.append(BusEvent(start, end, sender.name, self._once(frame), self._once(acked),
+                                       self._once(error), self._once(tuple(received)), flag_at_bit,
+                                       self._once(array("q", [time - start for time, _ in run.wire]).tobytes())))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_frame)
+
+    KEPT = 4096             # distinct parts of events `_once` keeps at most; then it starts again
+
+    def _once(self, part: AnyPart) -> AnyPart:
+        """`part` of an event (a frame, who ACKed, what each node did, the wire), as stored the first time it came:
+        a trace of 20,000 events holds each thing they repeat once."""
+        if len(self._kept) >= self.KEPT:
+            self._kept.clear()
+        return self._kept.setdefault(part, part)        # type: ignore[return-value]
 
     @staticmethod
     def _deliver(port: _Port, outcome: Outcome) -> str:
