@@ -9,7 +9,7 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from bench import busywait, fullload, grading, knobs, linked, pythoncan
+from bench import busywait, flood, fullload, grading, knobs, linked, pythoncan
 from bench.figures import Figure, machine, repeat, table
 
 
@@ -25,12 +25,16 @@ class Config:
     class_size: int             # submissions graded by `appsim grade --jobs 2`
     isolation_class: int        # submissions graded sandboxed and --trusted, for the isolation's cost
     knob_turns: int             # slider moves per exercise notebook
+    flood_s: float              # simulated seconds of the classroom under an error flood
+    peer_s: float               # wall seconds of the linked classroom with a flooding python-can peer in the process
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
-              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5)
+              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5, flood_s=5.0,
+              peer_s=300.0)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
-               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1)
+               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1, flood_s=0.1,
+               peer_s=3.0)
 
 
 def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
@@ -144,6 +148,34 @@ def _knobs(config: Config) -> list[Figure]:
     ]
 
 
+def _floods(config: Config) -> list[Figure]:
+    figures = []
+    for varied, what in ((False, "one failing frame sent again and again"),
+                         (True, "random data, each error at another bit: no two alike")):
+        runs = [flood.error_flood(config.flood_s, varied=varied) for _ in range(max(config.runs, 1))]
+        kind = "varied" if varied else "steady"
+        figures.append(Figure(f"real-time factor: Ex6 classroom under a {kind} error flood from outside, 125 kbit/s",
+                              "sim s / wall s", tuple(r.real_time_factor for r in runs), target=1,
+                              note=f"{what}; {runs[-1].error_frames / runs[-1].simulated_s:,.0f} error frames a "
+                                   "second, every frame bit by bit"))
+    for scenario, words in (("", "the classroom's frames"), ("steady", "a steady error flood"),
+                            ("varied", "a varied error flood")):
+        figures.append(Figure(f"memory of a trace event: {words}", "bytes",
+                              repeat(config.runs, lambda scenario=scenario: flood.bytes_per_event(scenario)),
+                              target=flood.EVENT_BYTES, lower_is_better=True,
+                              note=f"tracemalloc over {flood.EVENTS_MEASURED:,} events; appsim/bus/trace.py says "
+                                   "about 200"))
+    peer = flood.virtual_peer(config.peer_s, sample_s=max(1.0, config.peer_s / 30))
+    settled = config.peer_s / 5
+    figures.append(Figure(f"linked classroom, an in-process virtual peer at full rate for {config.peer_s:g} s: "
+                          f"memory growth after the first {settled:g} s", "MB", (peer.growth_mb(settled),),
+                          target=5, lower_is_better=True,
+                          note=f"resident {peer.rss_mb[0]:.0f} MB at the start, {peer.rss_mb[-1]:.0f} MB at the end; "
+                               f"the peer sent {peer.sent:,} frames, the link accounted for {peer.accounted:,}; "
+                               f"at most {peer.max_lag_s:.2f} s behind real time"))
+    return figures
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="a tiny configuration (seconds, not minutes)")
@@ -155,7 +187,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
         config = Config(**{**config.__dict__, "runs": args.runs})
     figures: list[Figure] = []
-    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _linked, _knobs):
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _linked, _knobs, _floods):
         figures += part(config)
     print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
     print(table(figures))
