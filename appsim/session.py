@@ -176,6 +176,13 @@ class Session:
             ran = f" ({process.filename})" if process.filename else ""
             print(f"{mcu.name}{ran} stopped: {fault.message}", file=sys.stderr)
 
+    def report_unfired(self) -> int:
+        """Say which injected errors never fired (all their frames), and why: how many."""
+        lines = self.bus.injections.not_fired()
+        for line in lines:
+            print(f"--inject {line}", file=sys.stderr)
+        return len(lines)
+
     def interrupted(self) -> str:
         """What a Ctrl-C leaves: where the run stopped and what the logs hold."""
         kept = "".join(f"; {log.path} holds its first {log.written} frames"
@@ -232,7 +239,8 @@ def session_command(logs: Callable[[argparse.Namespace], list[tuple[str, Path]]]
                     session.close()
                     raise KeyboardInterrupt(session.interrupted()) from None
                 session.report_failures()
-                return 1 if session.reported else 0
+                unfired = session.report_unfired()
+                return 1 if session.reported or unfired else 0
         return command
     return decorate
 

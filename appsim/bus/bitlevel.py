@@ -14,8 +14,9 @@ from functools import lru_cache
 from itertools import chain, count, zip_longest
 from operator import attrgetter
 
-from appsim.can.bits import WireBit, crc15, encode_annotated
-from appsim.can.frame import CanFrame
+from appsim.can.bits import INTERMISSION_BITS, TAIL_BITS, WireBit, crc15, encode_annotated, max_frame_bits
+from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
+from appsim.errors import InjectionError
 
 ERROR_FLAG_BITS = 6                 # an error or overload flag; a passive one ends after 6 equal bits
 ERROR_DELIMITER_BITS = 8
@@ -26,6 +27,19 @@ _ARBITRATION_FIELDS = (frozenset(("ID", "RTR")), frozenset(("ID", "SRR", "IDE", 
 _MAX_BUS_BITS = 2000        # no frame and error frames last this long; a guard against a run that never settles
 
 
+# Where an injected error can be at all (bits from SOF = 0): a stuff error is the sixth equal bit in a row, from SOF
+# and the first five identifier bits (bit 5) to the end of the longest frame's CRC sequence; a form error is a
+# fixed-form bit read dominant, the CRC delimiter of the shortest frame at the earliest; a frame and its error frames
+# last at most as long as the longest frame, an error in its last bit, two error flags one upon the other, the error
+# delimiter and the intermission.
+FIRST_STUFF_ERROR_BIT = 5
+LAST_STUFF_ERROR_BIT = max_frame_bits(8, extended=True) - TAIL_BITS - 1
+FIRST_FORM_ERROR_BIT = 34
+LAST_BIT = max_frame_bits(8, extended=True) + 2 * ERROR_FLAG_BITS + ERROR_DELIMITER_BITS + INTERMISSION_BITS - 1
+LONGEST_DOMINANT_BITS = 1000        # a transceiver held dominant longer holds the bus for everyone; the engine's guard
+AT_THEIR_PLACE = ("crc", "ack")     # injected where the protocol finds them, at the ACK delimiter and the ACK slot
+
+
 @dataclass(frozen=True, slots=True)
 class Injection:
     """Make `node` see an error of `kind` at bit `bit` (SOF = 0, counted in its own bits, stuff bits included) of
@@ -33,10 +47,10 @@ class Injection:
 
     bit: it samples the opposite of the wire at `bit` (a transmitter: a bit error there, also inside its own active
     error flag; a receiver: whatever that wrong bit leads to). stuff: it sees a stuff error at `bit`. crc: its CRC
-    check fails (flag after the ACK delimiter; `bit` unused). form: it samples dominant at `bit` (a fixed-form bit:
-    CRC or ACK delimiter, EOF, error delimiter). ack: a transmitter sees the ACK slot recessive (`bit` unused).
+    check fails (flag after the ACK delimiter; `bit` 0). form: it samples dominant at `bit` (a fixed-form bit:
+    CRC or ACK delimiter, EOF, error delimiter). ack: a transmitter sees the ACK slot recessive (`bit` 0).
     dominant: it drives the wire dominant for `length` bits from `bit`, whatever it is doing (a faulty transceiver);
-    the other nodes see what follows."""
+    the other nodes see what follows. One that could never happen is refused (`InjectionError`, with why)."""
 
     node: str
     kind: str
@@ -46,10 +60,52 @@ class Injection:
     length: int = 1
 
     def __post_init__(self) -> None:
-        if self.kind not in ERROR_KINDS:
-            raise ValueError(f"no error kind {self.kind!r}: the kinds are {', '.join(ERROR_KINDS)}")
-        if self.bit < 0 or self.frames < 1:
-            raise ValueError("an injection needs a bit >= 0 (SOF is bit 0) and frames >= 1")
+        why = self._impossible()
+        if why:
+            raise InjectionError(why)
+
+    def _impossible(self) -> str:
+        """Why this error could never happen on a CAN bus, "" if it can."""
+        kind, bit = self.kind, self.bit
+        if kind not in ERROR_KINDS:
+            return f"no error kind {kind!r}: the kinds are {', '.join(ERROR_KINDS)}"
+        if not _whole(bit) or not _whole(self.frames) or not _whole(self.length):
+            return "an injection's bit, frames and length are whole numbers"
+        if self.can_id is not None and not (_whole(self.can_id) and 0 <= self.can_id <= EXTENDED_ID_MAX):
+            shown = f"0x{self.can_id:X}" if _whole(self.can_id) else repr(self.can_id)
+            return (f"no frame has identifier {shown}: identifiers are 0..0x{STANDARD_ID_MAX:X} (11 bits) or, "
+                    f"extended, 0..0x{EXTENDED_ID_MAX:X} (29 bits)")
+        if self.frames < 1:
+            return f"an injection fires in 1 frame or more, not {self.frames}"
+        if kind in AT_THEIR_PLACE:
+            if bit:
+                place = "a receiver's ACK delimiter" if kind == "crc" else "a transmitter's ACK slot"
+                return (f"{'an' if kind == 'ack' else 'a'} {_LABEL[kind]} is seen at {place}, whatever the frame's "
+                        f"length: give bit 0, not {bit}")
+            return ""
+        if bit < 0:
+            return f"bits are counted from SOF = 0: bit {bit} comes before any frame"
+        if bit > LAST_BIT:
+            return (f"bit {bit} is past the end of any frame and the error frames that can follow it: bits are counted "
+                    f"from SOF = 0 to {LAST_BIT} at most (the longest frame is {LAST_STUFF_ERROR_BIT + 1 + TAIL_BITS} "
+                    "bits)")
+        if kind == "stuff" and not FIRST_STUFF_ERROR_BIT <= bit <= LAST_STUFF_ERROR_BIT:
+            return (f"a stuff error is the sixth equal bit in a row between SOF and the end of the CRC sequence: bits "
+                    f"{FIRST_STUFF_ERROR_BIT}..{LAST_STUFF_ERROR_BIT}, not {bit} (kind 'bit' flips any bit)")
+        if kind == "form" and bit < FIRST_FORM_ERROR_BIT:
+            return (f"a form error is a dominant bit where a frame has a fixed recessive one, the CRC delimiter of the "
+                    f"shortest frame (bit {FIRST_FORM_ERROR_BIT}) at the earliest, not bit {bit} (kind 'bit' flips any "
+                    "bit)")
+        if kind == "dominant" and not 1 <= self.length <= LONGEST_DOMINANT_BITS:
+            return f"a dominant injection lasts 1..{LONGEST_DOMINANT_BITS} bits, not {self.length}"
+        if kind == "dominant" and bit < 1:
+            return ("a node drives in each bit what it decided at the bit before, and SOF (bit 0) is dominant anyway: "
+                    "a dominant injection starts at bit 1 at the earliest")
+        return ""
+
+
+def _whole(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,7 +166,6 @@ class Run:
 
 # Phases of a node's protocol state machine.
 _FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE = range(6)
-_ANY_BIT = ("crc", "ack")           # injected at the place the protocol gives them, whatever their `bit`
 _SAMPLED = ("bit", "form")          # change what the node samples at their bit
 
 
@@ -148,12 +203,12 @@ class _Node(_Clocked):
         self.followers: list[_Follower] = []
         self.tec, self.rec = station.tec, station.rec
         self.tx = _transmitted(station.frame) if station.frame is not None else ()
-        # its injections, by (kind, bit) (bit None: `_ANY_BIT`), in the order given; "dominant" ones by themselves
+        # its injections, by (kind, bit) (bit None: `AT_THEIR_PLACE`), in the order given; "dominant" ones by themselves
         self.injected: dict[tuple[str, int | None], list[Injection]] = {}
         for injection in station.injections:
             if injection.kind != "dominant":
                 kind = "sampled" if injection.kind in _SAMPLED else injection.kind
-                where = None if injection.kind in _ANY_BIT else injection.bit
+                where = None if injection.kind in AT_THEIR_PLACE else injection.bit
                 self.injected.setdefault((kind, where), []).append(injection)
         self.dominant = tuple(i for i in station.injections if i.kind == "dominant")
         self.armed = bool(station.injections)

@@ -16,6 +16,7 @@ from typing import Protocol, TypeVar
 
 from appsim.bus.bitlevel import Assembled, Injection, Outcome, Run, Station, run_frame
 from appsim.bus.controller import Controller, Mode, Node
+from appsim.bus.injections import Injections, Taking
 from appsim.bus.trace import TRACE_WINDOW, Trace
 from appsim.can.bits import INTERMISSION_BITS, frame_bits
 from appsim.can.bittiming import BitTiming, BitTimingError
@@ -249,7 +250,7 @@ class Bus:
         self.busy_until = 0          # end of the intermission after the last frame or error frame
         self._arbitration: Timer | None = None
         self._idle_timer: Timer | None = None
-        self._injections: list[list] = []     # [Injection, frames still to fire in]
+        self.injections = Injections()
         self._kept: dict[object, object] = {}   # what events repeat (frames, outcomes, wires), stored once
 
     # ------------------------------------------------------------------ nodes
@@ -399,12 +400,15 @@ class Bus:
         same_id = [e for e in entries[1:] if e[0] == key]
         senders = {id(sender)} | {id(e[1]) for e in same_id}
         listeners = [p for p in self.ports if id(p) not in senders and self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
-        injections = self._injections_for(frame, [sender] + [e[1] for e in same_id] + listeners)
         ackers = tuple(p.name for p in listeners if p.mode == Mode.NORMAL)
         if isinstance(sender, _LinkPort):
             ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
-        if (injections or not ackers or any(e[3] != frame for e in same_id)
-                or not all(p.rate_ok for p in listeners) or not all(e[1].rate_ok for e in entries)):
+        plain = (bool(ackers) and all(e[3] == frame for e in same_id)
+                 and all(p.rate_ok for p in listeners) and all(e[1].rate_ok for e in entries))
+        injections = {} if not self.injections else self.injections.offer(
+            frame, [Taking(e[1].name, True, True) for e in entries]
+            + [Taking(p.name, p.mode == Mode.NORMAL, False) for p in listeners if id(p) not in senders], plain=plain)
+        if injections or not plain:
             self._bit_by_bit(now, entries, listeners, injections)
             return
         for loser_key, port, lost_buffer, _ in entries[1:]:
@@ -434,27 +438,15 @@ class Bus:
     def inject(self, node: str, kind: str, bit: int = 0, *, can_id: int | None = None, frames: int = 1,
                length: int = 1) -> Injection:
         """Make `node` see an error of `kind` ("bit", "stuff", "crc", "form", "ack") at bit `bit` (SOF = 0), or drive
-        `length` dominant bits from there ("dominant"), in the next `frames` frames it takes part in (with
-        identifier `can_id`, if given); see `appsim.bus.bitlevel.Injection`."""
+        `length` dominant bits from there ("dominant"), in the next `frames` frames it takes part in in Normal mode
+        (with identifier `can_id`, if given); see `appsim.bus.bitlevel.Injection`. Several for one node fire in turn,
+        in successive frames, unless each is at a later bit than the one before (docs/errors.md); one that could never
+        happen is refused (`InjectionError`), and `injections.not_fired()` says which never fired, and why."""
         if all(port.name != node for port in self.ports):
             raise KeyError(f"no node named {node!r} on this bus")
         injection = Injection(node, kind, bit, can_id, frames, length)
-        self._injections.append([injection, frames])
+        self.injections.arm(injection)
         return injection
-
-    def _injections_for(self, frame: CanFrame, ports: list[_Port]) -> dict[str, tuple[Injection, ...]]:
-        """The injections that fire in this frame, by node name."""
-        if not self._injections:
-            return {}
-        names = {port.name for port in ports}
-        firing: dict[str, tuple[Injection, ...]] = {}
-        for armed in self._injections:
-            injection = armed[0]
-            if injection.node in names and injection.can_id in (None, frame.can_id):
-                firing[injection.node] = firing.get(injection.node, ()) + (injection,)
-                armed[1] -= 1
-        self._injections = [armed for armed in self._injections if armed[1] > 0]
-        return firing
 
     def _bit_by_bit(self, start: int, entries: list[tuple[int, _Port, str, CanFrame]], listeners: list[_Port],
                     injections: dict[str, tuple[Injection, ...]]) -> None:
@@ -469,6 +461,7 @@ class Bus:
             stations.append(Station(port.name, port.mode == Mode.LISTEN_ONLY, bit_ps, sample_ps, port.tec, port.rec,
                                     frames.get(id(port)), injections.get(port.name, ())))
         run = run_frame(start, stations)
+        self.injections.fired(injections, run.outcomes)
         buffers = {id(e[1]): e[2] for e in entries}
         for _, port, buffer, _ in entries:
             lost_at = run.outcomes[port.name].lost_at_ps
