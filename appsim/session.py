@@ -14,17 +14,18 @@ from typing import TextIO
 import can
 
 from appsim.board.app023 import APP023
-from appsim.board.usbcdc import UsbCdc
+from appsim.board.usbcdc import LONGEST_LINE, UsbCdc
 from appsim.bus.link import BusLink
 from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, error_counters, summary
 from appsim.bus.realtime import WallClock
 from appsim.bus.waveform import WaveformLog
 from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
+from appsim.chip.usart import PC_BAUD
 from appsim.firmware.loader import constants, load_firmware
 from appsim.output import OutputFile, cannot_write, check_distinct
 from appsim.sim import PS_PER_SECOND, Simulator, ps
-from appsim.workshop.checks.demo1 import FRAME_LINE, LOST_COUNT
+from appsim.workshop.checks.demo1 import BAUD_FIX, FRAME_LINE, LOST_COUNT
 from appsim.workshop.classroom import Classroom, station_defines
 from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES, SOLUTIONS, STATIONS, station_ids
 from appsim.workshop.faults import board_fault
@@ -385,7 +386,6 @@ class MonitorTally:
     lines add up to; its RXB0 and RXB1 were full: counted on the bus), or neither. It counts the lines as they leave
     the board's USART, whether or not a program reads them: what the USB-CDC bridge loses is `UsbCdc.report()`'s."""
 
-    LONGEST_LINE = 256                # the board's longest line is under 70 characters: more is not a line
 
     def __init__(self, bus: Bus, board: APP023):
         self.name = board.name
@@ -410,7 +410,7 @@ class MonitorTally:
 
     def _byte(self, byte: int, time_ps: int) -> None:
         if byte not in b"\r\n":
-            if len(self._line) < self.LONGEST_LINE:
+            if len(self._line) < LONGEST_LINE:
                 self._line.append(byte)
             return
         line = self._line.decode("latin-1").replace("\0", "")   # C18's putsUSART sends the NUL too
@@ -473,6 +473,10 @@ def cmd_monitor(args: argparse.Namespace, session: Session) -> None:
                                           lambda: f"{tally.progress()}; USB: {usb.lost_to_pc:,} bytes lost"))
         finally:            # after Ctrl-C too: what became of the frames, and a port left as a program expects
             print(f"{tally.summary()}\n{usb.report()}", file=out)
+            for baud in usb.misread:
+                print(f"Demo1's firmware set its USART to {baud:,} baud, but the port runs at {PC_BAUD:,} baud (the "
+                      f"PIC18F2550 bridge's UART, 19200 8N1): what reached the PC is garbage. {BAUD_FIX}: "
+                      "OpenUSART(..., 129) with USART_BRGH_HIGH.", file=out)
             session.print_written()
             out.flush()
             if usb.in_use():
