@@ -147,25 +147,27 @@ class OutputFile(io.RawIOBase):
         fifo = info is not None and stat.S_ISFIFO(info.st_mode)
         deadline = time.monotonic() + FIFO_WAIT_S
         told = False
-        while True:
-            try:
-                return os.open(self.path, flags, 0o666)
-            except OSError as error:
-                if not (fifo and error.errno == errno.ENXIO):
-                    raise cannot_write(self.path, error) from None
-            if time.monotonic() >= deadline:
-                raise OutputError(f"cannot write {self.path}: it is a FIFO (named pipe) and no program opened it "
-                                  f"for reading in {FIFO_WAIT_S:g} s: start the reader first (e.g. cat {self.path} "
-                                  "> copy), or give a file name")
-            if not told:
-                waiting(f"appsim: {self.path} is a FIFO (named pipe): waiting for a program to open it for reading "
-                        f"(up to {FIFO_WAIT_S:g} s; nothing runs until then; Ctrl-C gives up)")
-                told = True
-            try:
+        try:
+            while True:
+                try:
+                    return os.open(self.path, flags, 0o666)
+                except OSError as error:
+                    if not (fifo and error.errno == errno.ENXIO):
+                        raise cannot_write(self.path, error) from None
+                if time.monotonic() >= deadline:
+                    raise OutputError(f"cannot write {self.path}: it is a FIFO (named pipe) and no program opened it "
+                                      f"for reading in {FIFO_WAIT_S:g} s: start the reader first (e.g. cat "
+                                      f"{self.path} > copy), or give a file name")
+                if not told:
+                    waiting(f"appsim: {self.path} is a FIFO (named pipe): waiting for a program to open it for "
+                            f"reading (up to {FIFO_WAIT_S:g} s; nothing runs until then; Ctrl-C gives up)")
+                    told = True
                 time.sleep(FIFO_POLL_S)
-            except KeyboardInterrupt:
-                raise KeyboardInterrupt(f"interrupted (Ctrl-C) while waiting for a program to read the FIFO "
-                                        f"{self.path}: nothing ran") from None
+        except KeyboardInterrupt:
+            if not fifo:
+                raise
+            raise KeyboardInterrupt(f"interrupted (Ctrl-C) while waiting for a program to read the FIFO "
+                                    f"{self.path}: nothing ran") from None
 
     # ------------------------------------------------------------------ what a writer sees
     def writable(self) -> bool:

@@ -72,7 +72,7 @@ class Injection:
         if not _whole(bit) or not _whole(self.frames) or not _whole(self.length):
             return "an injection's bit, frames and length are whole numbers"
         if self.can_id is not None and not (_whole(self.can_id) and 0 <= self.can_id <= EXTENDED_ID_MAX):
-            shown = f"0x{self.can_id:X}" if _whole(self.can_id) else repr(self.can_id)
+            shown = f"{'-' * (self.can_id < 0)}0x{abs(self.can_id):X}" if _whole(self.can_id) else repr(self.can_id)
             return (f"no frame has identifier {shown}: identifiers are 0..0x{STANDARD_ID_MAX:X} (11 bits) or, "
                     f"extended, 0..0x{EXTENDED_ID_MAX:X} (29 bits)")
         if self.frames < 1:
