@@ -243,18 +243,22 @@ def as_ordinary_user() -> dict[str, object]:
     return {"user": 65534, "group": 65534, "extra_groups": []}
 
 
-def test_a_folder_an_ordinary_user_cannot_write_is_refused_in_those_words():
+def test_as_an_ordinary_user_a_folder_one_cannot_write_and_a_full_disk_are_said_in_their_own_words():
     place = Path(tempfile.mkdtemp(prefix="appsim-readonly-"))
     try:
         place.chmod(0o755)
         (place / "locked").mkdir(mode=0o555)
-        for argv, path in ((["classroom", "--log", f"{place}/locked/trace.log"], f"{place}/locked/trace.log"),
-                           (["classroom", "--vcd", f"{place}/locked/line.vcd"], f"{place}/locked/line.vcd"),
-                           (["demo", "--out", f"{place}/locked"], f"{place}/locked/trace.log")):
+        no_permission = "no permission to write there: give a path where you can write"
+        for argv, said in ((["classroom", "--log", f"{place}/locked/trace.log"],
+                            f"cannot write {place}/locked/trace.log: {no_permission}"),
+                           (["classroom", "--vcd", f"{place}/locked/line.vcd"],
+                            f"cannot write {place}/locked/line.vcd: {no_permission}"),
+                           (["demo", "--out", f"{place}/locked"], f"cannot write {place}/locked/trace.log: "
+                                                                  f"{no_permission}"),
+                           (["classroom", "--vcd", "/dev/full"], "cannot write /dev/full: the disk is full")):
             result = appsim(*argv, **as_ordinary_user())
             assert result.returncode == 2 and result.stdout == "", result.stderr
-            assert f"appsim: cannot write {path}: no permission to write there: give a path where you can write" \
-                   in result.stderr
+            assert f"appsim: {said}" in result.stderr, result.stderr
     finally:
         shutil.rmtree(place)
 
