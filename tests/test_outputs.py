@@ -55,45 +55,50 @@ def fifo(tmp_path: Path, name: str = "line.vcd") -> Path:
     return path
 
 
-@contextmanager
-def started(argv: list[str], banner: str) -> Iterator[subprocess.Popen]:
-    """`appsim ARGV` running, once it has printed `banner` (a thread keeps reading its stdout)."""
-    process = subprocess.Popen([sys.executable, "-m", "appsim", *argv], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, cwd=KIT, env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    lines: list[str] = []
-    seen = threading.Event()
+class Running:
+    """`appsim ARGV` running, its stdout and stderr read as they come by threads of their own."""
 
-    def read() -> None:
-        assert process.stdout is not None
-        for line in process.stdout:
+    def __init__(self, argv: list[str], banner: str):
+        self.process = subprocess.Popen([sys.executable, "-m", "appsim", *argv], stdout=subprocess.PIPE,
+                                        stderr=subprocess.PIPE, text=True, cwd=KIT,
+                                        env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        self.out: list[str] = []
+        self.err: list[str] = []
+        self.banner, self.seen = banner, threading.Event()
+        self.readers = [threading.Thread(target=self._read, args=(self.process.stdout, self.out), daemon=True),
+                        threading.Thread(target=self._read, args=(self.process.stderr, self.err), daemon=True)]
+        for reader in self.readers:
+            reader.start()
+
+    def _read(self, stream, lines: list[str]) -> None:
+        for line in stream:
             lines.append(line)
-            if banner in line:
-                seen.set()
-        seen.set()
+            if self.banner in line:
+                self.seen.set()
+        self.seen.set()
 
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
-    process.lines = lines                   # type: ignore[attr-defined]
-    process.reader = reader                 # type: ignore[attr-defined]
+    def interrupt(self) -> tuple[str, str]:
+        """Ctrl-C, then its stdout and stderr; the test fails if the run has not ended within `ENDS_S`."""
+        self.process.send_signal(signal.SIGINT)
+        try:
+            self.process.wait(timeout=ENDS_S)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"Ctrl-C did not end the run within {ENDS_S:g} s")
+        for reader in self.readers:
+            reader.join(5)
+        return "".join(self.out), "".join(self.err)
+
+
+@contextmanager
+def started(argv: list[str], banner: str) -> Iterator[Running]:
+    """`appsim ARGV` running, once it has printed `banner`; killed at the end whatever happened."""
+    running = Running(argv, banner)
     try:
-        assert seen.wait(60) and process.poll() is None, "".join(lines) + (process.stderr.read() if process.stderr
-                                                                             else "")
-        yield process
+        assert running.seen.wait(60) and running.process.poll() is None, "".join(running.out + running.err)
+        yield running
     finally:
-        process.kill()
-        process.wait()
-
-
-def interrupt(process: subprocess.Popen) -> tuple[float, str, str]:
-    """Ctrl-C: how long the run took to end, its stdout and stderr."""
-    pressed = time.monotonic()
-    process.send_signal(signal.SIGINT)
-    try:
-        _, err = process.communicate(timeout=ENDS_S)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"Ctrl-C did not end the run within {ENDS_S:g} s")
-    process.reader.join(5)                  # type: ignore[attr-defined]
-    return time.monotonic() - pressed, "".join(process.lines), err   # type: ignore[attr-defined]
+        running.process.kill()
+        running.process.wait()
 
 
 # ---------------------------------------------------------------------- FIFOs
@@ -104,12 +109,12 @@ def test_a_fifo_whose_reader_stalls_never_blocks_the_run_and_ctrl_c_ends_it_with
     stalled = os.open(line, os.O_RDONLY | os.O_NONBLOCK)        # a reader that opens it and never reads
     fcntl.fcntl(stalled, F_SETPIPE_SZ, SMALLEST_PIPE)
     try:
-        with started([arg.format(fifo=line, tmp=tmp_path) for arg in argv], banner) as process:
+        with started([arg.format(fifo=line, tmp=tmp_path) for arg in argv], banner) as running:
             time.sleep(3)                                       # long enough to fill the pipe, in real time too
-            took, out, err = interrupt(process)
+            _, err = running.interrupt()
     finally:
         os.close(stalled)
-    assert process.returncode == 130 and "Traceback" not in err, err
+    assert running.process.returncode == 130 and "Traceback" not in err, err
     said = re.search(rf"{line} holds its first (\d+) frames \(its reader fell behind: ([\d,]+) frames? dropped\)",
                      err)
     assert said, err
@@ -178,21 +183,11 @@ def test_a_reader_that_closes_the_fifo_ends_that_output_the_run_goes_on_and_says
 
 def test_a_fifo_nobody_reads_is_waited_for_with_a_message_and_ctrl_c_gives_up(tmp_path):
     line = fifo(tmp_path)
-    process = subprocess.Popen([sys.executable, "-m", "appsim", "classroom", "--vcd", str(line)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=KIT)
-    told: list[str] = []
-    assert process.stderr is not None
-    reading = threading.Thread(target=lambda: told.append(process.stderr.readline()), daemon=True)
-    try:
-        reading.start()
-        reading.join(10)
-        assert told and f"appsim: {line} is a FIFO (named pipe): waiting for a program to open it for reading" in \
-            told[0], "it says at once why nothing happens"
-        process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=ENDS_S)
-    finally:
-        process.kill()
-    assert process.returncode == 130 and out == ""
+    waiting = f"appsim: {line} is a FIFO (named pipe): waiting for a program to open it for reading"
+    with started(["classroom", "--vcd", str(line)], waiting) as running:
+        assert any(waiting in told for told in running.err), "it says at once why nothing happens"
+        out, err = running.interrupt()
+    assert running.process.returncode == 130 and out == ""
     assert f"interrupted (Ctrl-C) while waiting for a program to read the FIFO {line}: nothing ran" in err
 
 
