@@ -389,7 +389,9 @@ class MonitorTally:
 
     def __init__(self, bus: Bus, board: APP023):
         self.name = board.name
+        self.usart = board.usart
         self.frames = 0                   # frames that went through on the bus
+        self.listed_bytes = 0             # the bytes of the frame lines, line ends included
         self.not_listening = 0            # of them, sent while the monitor's ECAN was not on the bus
         self.lost_in_ecan = 0             # of them, lost because RXB0 and RXB1 were full
         self.listed = 0                   # frame lines on the serial port
@@ -417,6 +419,7 @@ class MonitorTally:
         self._line.clear()
         if FRAME_LINE.match(line) or line[:1] in ("t", "T", "r", "R"):
             self.listed += 1
+            self.listed_bytes += len(line) + (2 if FRAME_LINE.match(line) else 1)      # CR LF; SLCAN's CR
         elif line.startswith("#"):
             self.lost_in_queue += sum(int(n) for n in LOST_COUNT.findall(line))
 
@@ -428,7 +431,8 @@ class MonitorTally:
     def progress(self) -> str:
         return f"{self.frames:,} frames on the bus: {self.listed:,} listed, {self.lost:,} lost on the CAN side"
 
-    def summary(self) -> str:
+    def summary(self, seconds: float) -> str:
+        """What became of the frames of a run of `seconds`, and why frames were lost in the board's queue."""
         def share(count: int) -> str:
             return f"{count:,} ({count / self.frames:.0%})" if self.frames else f"{count:,}"
 
@@ -437,11 +441,27 @@ class MonitorTally:
                  f"  {share(self.listed)} listed by the monitor on its serial port",
                  f"  {share(self.lost)} lost on the CAN side: {self.lost_in_queue:,} when its RAM queue was full "
                  f"(its '# lost' lines), {self.lost_in_ecan:,} when RXB0 and RXB1 were full"]
+        if self.lost_in_queue and self.listed and seconds > 0:
+            lines.append("    " + self._why_the_queue_was_full(seconds))
         if neither:
             lines.append(f"  {share(neither)} neither listed nor said lost: {self.not_listening:,} went by before the "
-                         "monitor listened, the others were still inside it when the run ended (queued, or counted "
-                         "for a '# lost' line not sent yet) or were dropped without a word")
+                         "monitor listened; the others were still inside it when the run ended (queued, or counted "
+                         "for a '# lost' line not sent yet), or were dropped without a '# lost' line")
         return "\n".join(lines)
+
+    def _why_the_queue_was_full(self, seconds: float) -> str:
+        """The USART's budget against the bus's frame rate: the faithful 19200-baud limit, or a slow firmware."""
+        line_bytes = self.listed_bytes / self.listed
+        bytes_per_s = self.usart.baud / 10                          # 8N1: start, 8 data bits, stop
+        can_list, listed, offered = bytes_per_s / line_bytes, self.listed / seconds, self.frames / seconds
+        budget = (f"why: a frame's line is about {line_bytes:.0f} bytes and the USART sends {bytes_per_s:,.0f} bytes "
+                  f"a second ({self.usart.baud:,.0f} baud, 8N1), so the monitor can list about {can_list:.0f} frames "
+                  f"a second, while the bus carried {offered:.0f} a second")
+        if listed >= 0.9 * can_list:
+            return (f"{budget}: its RAM queue fills, and it says '# lost N'. That is the APP023's own limit, as on the "
+                    "real board, not a fault of the firmware (docs/monitor-format.md)")
+        return (f"{budget}; it listed {listed:.0f} a second, fewer than its USART could send: the firmware is slower "
+                "than its serial link")
 
 
 @session_command()
@@ -472,7 +492,7 @@ def cmd_monitor(args: argparse.Namespace, session: Session) -> None:
                         progress=Progress(session.sim, args.seconds,
                                           lambda: f"{tally.progress()}; USB: {usb.lost_to_pc:,} bytes lost"))
         finally:            # after Ctrl-C too: what became of the frames, and a port left as a program expects
-            print(f"{tally.summary()}\n{usb.report()}", file=out)
+            print(f"{tally.summary(session.sim.now / PS_PER_SECOND)}\n{usb.report()}", file=out)
             for baud in usb.misread:
                 print(f"Demo1's firmware set its USART to {baud:,} baud, but the port runs at {PC_BAUD:,} baud (the "
                       f"PIC18F2550 bridge's UART, 19200 8N1): what reached the PC is garbage. {BAUD_FIX}: "

@@ -211,6 +211,12 @@ def test_the_physical_layer_numbers_are_the_sources_and_the_picture_draws_them()
     assert [canh.get_ydata()[i] - canl.get_ydata()[i] for i in range(20)] == [2.0 * (1 - level) for level in levels]
     assert len([p for p in bus.patches if p.get_gid() == "terminator"]) == 2
     assert "60 Ω" in bus.get_title()
+    figure.canvas.draw()
+    legend = wires.get_legend().get_window_extent()
+    box = wires.get_window_extent()
+    assert box.x0 < legend.x0 and legend.x1 < box.x1 and box.y0 < legend.y0 and legend.y1 < box.y1, "inside the plot"
+    lowest = wires.transData.transform((0, min(min(canh.get_ydata()), min(canl.get_ydata()))))[1]
+    assert legend.y1 < lowest, "below both wires: the legend hides no level"
     plt.close(figure)
 
 

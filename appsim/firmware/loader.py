@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import contextlib
+import difflib
 import io
 import itertools
 import linecache
@@ -30,7 +31,7 @@ def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) ->
     follow. Six stations run one solution file with six identifiers this way.
     """
     path = Path(path)
-    return load_source(path, _read(path), defines)
+    return load_source(path, read_firmware(path), defines)
 
 
 def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | None = None) -> ModuleType:
@@ -67,17 +68,32 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
 def constants(path: str | Path) -> list[str]:
     """The names a firmware file assigns at top level (`NAME = <expr>`): the ones `defines` can replace."""
     path = Path(path)
-    return list(_assignments(_parse(path, _read(path))))
+    return list(_assignments(_parse(path, read_firmware(path))))
 
 
-def _read(path: Path) -> bytes:
-    if not path.is_file():
-        raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py file such as "
+def read_firmware(path: Path) -> bytes:
+    """The bytes of the firmware file at `path`, or a FirmwareError that says what is there instead."""
+    if path.is_dir():
+        raise FirmwareError(f"{path} is a folder, not a firmware file: give the path of a .py file, such as "
                             "exercises/ex1.py")
+    if not path.is_file():
+        what = f"{path} is not a regular file" if path.exists() else f"there is no firmware file at {path}"
+        near = _near(path)
+        raise FirmwareError(f"{what}: " + (f"did you mean {path.parent / near}?" if near else
+                                           "give the path of a .py file such as exercises/ex1.py"))
     try:
         return path.read_bytes()
     except OSError as error:
         raise FirmwareError(f"{path} cannot be read: {error.strerror}") from None
+
+
+def _near(path: Path) -> str | None:
+    """The name of a file beside `path` that is most likely what a typo meant (my_exl.py: my_ex1.py), if any."""
+    try:
+        names = [entry.name for entry in path.parent.iterdir() if entry.suffix == path.suffix and entry.is_file()]
+    except OSError:
+        return None
+    return next(iter(difflib.get_close_matches(path.name, names, n=1, cutoff=0.8)), None)
 
 
 def _parse(path: Path, source: bytes) -> ast.Module:
@@ -93,7 +109,14 @@ def _parse(path: Path, source: bytes) -> ast.Module:
 
 
 def _syntax_error(path: Path, error: SyntaxError) -> FirmwareError:
-    return FirmwareError(f"{path.name}, line {error.lineno}: {error.msg}: fix the Python syntax there")
+    """The error's line quoted as a load error's is, with a caret under where Python stopped reading."""
+    line = (error.text or "").splitlines()[0].rstrip() if (error.text or "").strip() else ""
+    quoted = ""
+    if line:
+        indent = len(line) - len(line.lstrip())
+        caret = min(max((error.offset or 1) - 1, indent), len(line))
+        quoted = f"\n(line {error.lineno}: {line.strip()})\n{' ' * (len(f'(line {error.lineno}: ') + caret - indent)}^"
+    return FirmwareError(f"{path.name}, line {error.lineno}: {error.msg}: fix the Python syntax there{quoted}")
 
 
 def _assignments(tree: ast.Module) -> dict[str, list[ast.Assign | ast.AnnAssign]]:

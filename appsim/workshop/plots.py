@@ -174,10 +174,10 @@ def bus_levels(levels: Sequence[int], axes: Sequence[Axes] | None = None) -> Fig
     wires.step(xs, canl + canl[-1:], where="post", color="tab:blue", linewidth=2, label="CANL")
     for index, level in enumerate(levels):
         wires.text(index + 0.5, 3.8, "D" if level == physical.DOMINANT else "R", ha="center", fontsize=8)
-    wires.set_ylim(1, 4.1)
+    wires.set_ylim(0.4, 4.1)                         # room under CANL's 1.5 V for the legend, clear of both lines
     wires.set_ylabel("volts")
     wires.set_xlim(0, len(levels))
-    wires.legend(loc="lower right", fontsize=8)
+    wires.legend(loc="lower right", fontsize=8, ncols=2)
     wires.set_title("dominant (D, logic 0): CANH pulled up, CANL down; recessive (R, logic 1): nobody drives, "
                     "both rest at 2.5 V")
     vdiff = [physical.differential_volts(level) for level in levels]

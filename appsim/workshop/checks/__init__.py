@@ -9,12 +9,14 @@ from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
+from appsim.errors import FirmwareError
+from appsim.firmware.loader import read_firmware
 from appsim.workshop.checks import demo1, ex1, ex2, ex3, ex4, ex5, ex6
-from appsim.workshop.checks.trial import Fatal, Loadable, Trial, hex_id, placement, resolve
+from appsim.workshop.checks.trial import Fatal, Loadable, Trial, hex_id, notebook_firmware, placement, resolve
 from appsim.workshop.checks.verdict import CheckResult, Verdict
 from appsim.workshop.course import EXERCISES, exercise_name, starter
 
-__all__ = ["EXERCISES", "CheckResult", "Verdict", "check", "check_names", "prepare"]
+__all__ = ["EXERCISES", "CheckResult", "Verdict", "check", "check_names", "prepare", "refusal"]
 
 RUNS = "firmware runs"
 NOT_JUDGED = "Not judged: the firmware did not run (see above)."
@@ -31,6 +33,25 @@ def not_judged(exercise: str | int, seed: int, fault: str, reason: str) -> Verdi
     name = exercise_name(exercise)
     return Verdict(name, seed, (CheckResult(RUNS, False, reason),
                                 *(CheckResult(n, False, NOT_JUDGED) for n in _MODULES[name].NAMES)), fault)
+
+
+def refusal(exercise: str | int, firmware: str | Path) -> str | None:
+    """Why `firmware` is no file to check `exercise` with, in the words `appsim check` refuses it with (nothing there,
+    a folder, a notebook without a firmware cell or of another exercise); None if it is one. A file that is one but
+    does not load is judged: the check says why it earns nothing."""
+    path = Path(firmware)
+    name = exercise_name(exercise)
+    try:
+        if path.suffix.lower() != ".ipynb":
+            read_firmware(path)
+            return None
+        named, _ = notebook_firmware(path)
+    except FirmwareError as error:
+        return str(error)
+    if named is not None and named != name:
+        return (f"{path.name} is {named.upper()}'s notebook (its metadata says so), not {name.upper()}'s: check it "
+                f"with `appsim check {named} {path}`, or give {name.upper()}'s")
+    return None
 
 
 def prepare(exercise: str, firmware: str | Path | ModuleType | Callable[[], object] | Loadable, seed: int,

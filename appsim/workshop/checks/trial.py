@@ -19,7 +19,7 @@ from appsim.chip.ecan.acceptance import raw29
 from appsim.chip.ecan.controller import ECAN
 from appsim.chip.mcu import PIC18F8680
 from appsim.errors import AppsimError, FirmwareError
-from appsim.firmware.loader import load_firmware
+from appsim.firmware.loader import load_firmware, load_source, read_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.course import CLASSROOM_BIT_RATE, MASTER_ID, RTR_IDS, STATION_IDS, STATIONS
@@ -77,10 +77,24 @@ def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmwar
     return Firmware(module.main, filename, label, identity_of(module))
 
 
+def notebook_firmware(path: Path) -> tuple[str | None, bytes]:
+    """The exercise a notebook names and the Python of its firmware cell, read as `appsim grade` reads it (IPython
+    magics made comments, so its lines are the cell's); FirmwareError if it has none or is no notebook."""
+    from appsim.workshop.grading.submissions import firmware_from_notebook
+
+    exercise, firmware = firmware_from_notebook(path.name, read_firmware(path))
+    if isinstance(firmware, Fault):
+        raise FirmwareError(firmware.message)
+    return exercise, firmware
+
+
 def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable) -> Firmware:
-    """The firmware as a runnable thing; one that does not load is `Fatal`, with its line."""
+    """The firmware as a runnable thing (a notebook's firmware cell for a .ipynb file); one that does not load is
+    `Fatal`, with its line."""
     if isinstance(firmware, (str, Path)):
         path = Path(firmware)
+        if path.suffix.lower() == ".ipynb":
+            return loaded(lambda: load_source(path, notebook_firmware(path)[1]), str(path), str(path))
         return loaded(lambda: load_firmware(path), str(path), str(path))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):

@@ -22,6 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, TextIO
 
+from appsim import provenance
 from appsim.errors import GradeError, OutputError, SandboxUnavailable
 from appsim.output import cannot_write, check_distinct
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
@@ -50,10 +51,13 @@ ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest fi
 # ====================================================================== the command
 
 def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: Path | None = None,
-        gradescope_path: Path | None = None, jobs: int | None = None, seed: int | None = None,
+        gradescope_path: str | Path | None = None, jobs: int | None = None, seed: int | None = None,
         limits: Limits = DEFAULT_LIMITS, trusted: bool = False, regrade: bool = False,
         out: TextIO = sys.stdout) -> list[Record]:
-    """Grade the submissions under `paths`, resuming from `results`; the records of these submissions, by name."""
+    """Grade the submissions under `paths`, resuming from `results`; the records of these submissions, by name.
+
+    `gradescope_path` is a folder of NAME.json (for several submissions, or given as a folder: one that exists or a
+    name ending in "/"), else the one submission's results.json."""
     if sys.platform == "win32":
         raise GradeError("appsim grade runs on Linux (or macOS with --trusted); on Windows, run it in WSL")
     results = results or default_results([Path(p) for p in paths])
@@ -65,12 +69,15 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
     check_output(results, "the results file (--json)")
     if csv_path is not None:
         check_output(csv_path, "the gradebook (--csv)")
-    walls = None if trusted else _walls([*map(Path, paths), results, csv_path, gradescope_path])
+    gradescope = None if gradescope_path is None else Path(gradescope_path)
+    walls = None if trusted else _walls([*map(Path, paths), results, csv_path, gradescope])
     with _Pool(limits, walls, jobs) as pool:           # the workers load while the submissions are read
         submissions = find_submissions([Path(p) for p in paths])
-        if gradescope_path is not None:
-            check_output(gradescope_path, "the Gradescope output (--gradescope)", folder=len(submissions) > 1)
-        kit = kit_version()
+        gradescope_folder = gradescope is not None and (len(submissions) != 1 or gradescope.is_dir()
+                                                        or str(gradescope_path).endswith(("/", os.sep)))
+        if gradescope is not None:
+            check_output(gradescope, "the Gradescope output (--gradescope)", folder=gradescope_folder)
+        kit, commit = kit_version(), provenance.commit()
         book = ResultsFile(results)
         try:
             previous = book.records()
@@ -80,10 +87,10 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
             todo = [s for s in submissions if regrade or not still_valid(previous.get(s.name), s.digest, seed, kit)]
             kept = len(submissions) - len(todo)
             print(f"appsim grade: {len(submissions)} submission(s), seed {seed} (the same seed gives the same "
-                  f"grades), results in {results}"
+                  f"grades), kit {kit} (git commit {commit or 'unknown'}), results in {results}"
                   + (f"; {kept} already graded there with this seed and kit, kept" if kept else "")
                   + ("; NOT ISOLATED (--trusted)" if trusted else ""), file=out, flush=True)
-            for number, record in enumerate(pool.grade(todo, seed, kit), start=1):
+            for number, record in enumerate(pool.grade(todo, seed, kit, commit), start=1):
                 with _ctrl_c_held():                # a record kept is a record reported, and the other way round
                     _writing(results, functools.partial(book.append, record))
                     previous[record["submission"]] = record
@@ -94,13 +101,15 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
     records = [previous[s.name] for s in submissions]
     if csv_path is not None:
         _writing(csv_path, functools.partial(write_csv, csv_path, records))
-    if gradescope_path is not None:
-        _writing(gradescope_path, functools.partial(write_gradescope, gradescope_path, records))
+    if gradescope is not None:
+        _writing(gradescope, functools.partial(write_gradescope, gradescope, records, folder=gradescope_folder))
     total, best = sum(r["score"] for r in records), sum(r["max_score"] for r in records)
-    print(f"graded {len(records)} submission(s): {total}/{best} points in all, mean "
-          f"{total / max(1, len(records)):.1f}/{records[0]['max_score'] if records else 0}; seed {seed}; results in "
-          f"{results}" + (f", gradebook {csv_path}" if csv_path else "")
-          + (f", Gradescope {gradescope_path}" if gradescope_path else ""), file=out)
+    print(f"graded {len(todo)} submission(s)" + (f", kept {kept} already graded" if kept else "")
+          + f": {total}/{best} points in all" + (f" {len(records)}" if kept else "")
+          + f", mean {total / max(1, len(records)):.1f}/{records[0]['max_score'] if records else 0}; seed {seed}; "
+          f"results in {results}"
+          + (f", gradebook {csv_path}" if csv_path else "")
+          + (f", Gradescope {gradescope}{'/' if gradescope_folder else ''}" if gradescope else ""), file=out)
     return records
 
 
@@ -219,7 +228,7 @@ class _Pool:
         for worker in self.workers:
             worker.end()
 
-    def grade(self, submissions: Sequence[Submission], seed: int, kit: str) -> Iterator[Record]:
+    def grade(self, submissions: Sequence[Submission], seed: int, kit: str, commit: str | None) -> Iterator[Record]:
         """Each submission's record as soon as all its exercises are graded (in no fixed order)."""
         waiting = collections.deque(_Task(n, s, e) for n, (s, e) in
                                     enumerate((s, e) for s in submissions for e in ORDER))
@@ -238,7 +247,7 @@ class _Pool:
             marks[task.exercise] = result
             if len(marks) < len(EXERCISES):
                 return None
-            return record_of(task.submission.name, task.submission.digest, seed, kit, marks)
+            return record_of(task.submission.name, task.submission.digest, seed, kit, marks, commit)
 
         try:
             for worker in self.workers:
