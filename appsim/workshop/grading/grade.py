@@ -61,15 +61,15 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
     if sys.platform == "win32":
         raise GradeError("appsim grade runs on Linux (or macOS with --trusted); on Windows, run it in WSL")
     results = results or default_results([Path(p) for p in paths])
+    gradescope = None if gradescope_path is None else Path(gradescope_path)
     try:
-        check_distinct([("--json", results), ("--csv", csv_path), ("--gradescope", gradescope_path)],
+        check_distinct([("--json", results), ("--csv", csv_path), ("--gradescope", gradescope)],
                        [("PATH", Path(p)) for p in paths])
     except OutputError as error:
         raise GradeError(str(error)) from None
     check_output(results, "the results file (--json)")
     if csv_path is not None:
         check_output(csv_path, "the gradebook (--csv)")
-    gradescope = None if gradescope_path is None else Path(gradescope_path)
     walls = None if trusted else _walls([*map(Path, paths), results, csv_path, gradescope])
     with _Pool(limits, walls, jobs) as pool:           # the workers load while the submissions are read
         submissions = find_submissions([Path(p) for p in paths])
