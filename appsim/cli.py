@@ -301,7 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
     for sub in (demo, board, classroom, monitor):
         sub.add_argument("--vcd", type=Path, metavar="FILE",
                          help="write the CAN line's waveform as it goes, a VCD for PulseView or sigrok-cli's CAN "
-                              "decoder (docs/traces.md)")
+                              "decoder; a FIFO or a pipe too, which never holds the run up (docs/traces.md)")
     for sub in (board, classroom, monitor):
         sub.add_argument("--log", type=Path, action="append", metavar="FILE",
                          help="write every frame as it goes: .log (candump), .asc, .blf or .csv (give --log again "
