@@ -71,7 +71,16 @@ def _identity(path: Path) -> tuple[object, ...]:
 
 
 def _file(info: os.stat_result) -> tuple[object, ...]:
-    return ("device", info.st_rdev) if stat.S_ISCHR(info.st_mode) else ("file", info.st_dev, info.st_ino)
+    if not stat.S_ISCHR(info.st_mode):
+        return ("file", info.st_dev, info.st_ino)
+    if info.st_rdev == _CONTROLLING_TERMINAL:     # /dev/tty: the terminal the command runs in, by its own name
+        for fd in (0, 1, 2):
+            with suppress(OSError):
+                return ("device", os.stat(os.ttyname(fd)).st_rdev)
+    return ("device", info.st_rdev)
+
+
+_CONTROLLING_TERMINAL = os.makedev(5, 0)
 
 
 _PRINTED = ((1, "standard output, where appsim prints its report"),

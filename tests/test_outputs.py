@@ -346,3 +346,27 @@ def test_appsim_grade_refuses_an_output_named_twice_or_over_a_submission(tmp_pat
     err = capsys.readouterr().err
     assert status == 2 and said.format(tmp=tmp_path) in err, err
     assert (tmp_path / "class.zip").read_bytes() == before
+
+
+def test_dev_tty_is_the_terminal_the_report_goes_to(tmp_path):
+    """`--vcd /dev/tty` in a terminal: /dev/tty is the terminal the report is printed on, by another name."""
+    import pty
+    import termios
+    master, slave = pty.openpty()
+    try:
+        process = subprocess.Popen([sys.executable, "-m", "appsim", "classroom", "--vcd", "/dev/tty"], stdin=slave,
+                                   stdout=slave, stderr=slave, cwd=KIT, start_new_session=True,
+                                   preexec_fn=lambda: fcntl.ioctl(0, termios.TIOCSCTTY, 0))
+        os.close(slave)
+        said = bytearray()
+        ends = time.monotonic() + 60
+        while process.poll() is None and time.monotonic() < ends:
+            try:
+                said += os.read(master, 4096)
+            except OSError:
+                break
+        process.wait(timeout=10)
+    finally:
+        os.close(master)
+    assert process.returncode == 2, said.decode(errors="replace")
+    assert b"--vcd /dev/tty is standard output, where appsim prints its report" in said
