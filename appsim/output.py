@@ -279,9 +279,8 @@ class OutputFile(io.RawIOBase):
             self._backlog.popleft()
             self.delivered += counted
 
-    def _drain(self, seconds: float) -> None:
-        """Give the reader `seconds` at most to take the backlog; a Ctrl-C meanwhile ends the wait."""
-        deadline = time.monotonic() + seconds
+    def _drain(self, deadline: float) -> None:
+        """Give the reader until `deadline` (time.monotonic()) to take the backlog; a Ctrl-C meanwhile ends the wait."""
         poller = select.poll()
         poller.register(self._fd, select.POLLOUT)
         try:
@@ -293,15 +292,16 @@ class OutputFile(io.RawIOBase):
         self.fell_behind += sum(counted for _, counted in self._backlog)
         self._backlog.clear()
 
-    def close(self) -> None:
-        """Write what is pending; a stream's reader gets `DRAIN_S` to take what waits for it, the rest is counted."""
+    def close(self, drain_until: float | None = None) -> None:
+        """Write what is pending; a stream's reader gets until `drain_until` (time.monotonic(); by default `DRAIN_S`
+        from now) to take what waits for it, the rest is counted."""
         if self.closed:
             return
         try:
             if self._pending:
                 self.commit(counted=False)
             if self.stream:
-                self._drain(DRAIN_S)
+                self._drain(time.monotonic() + DRAIN_S if drain_until is None else drain_until)
         finally:
             os.close(self._fd)
             if self._created:

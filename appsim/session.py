@@ -23,7 +23,7 @@ from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
 from appsim.chip.usart import PC_BAUD
 from appsim.firmware.loader import constants, load_firmware
-from appsim.output import OutputFile, cannot_write, check_distinct
+from appsim.output import DRAIN_S, OutputFile, cannot_write, check_distinct
 from appsim.sim import PS_PER_SECOND, Simulator, ps
 from appsim.workshop.checks.demo1 import BAUD_FIX, FRAME_LINE, LOST_COUNT
 from appsim.workshop.classroom import Classroom, station_defines
@@ -158,8 +158,10 @@ class Session:
 
     def print_written(self) -> None:
         """What each of the session's files holds, now that the run is over (and what a FIFO's reader did not get)."""
+        until = time.monotonic() + DRAIN_S          # every FIFO's reader together: Ctrl-C ends a run within 1 s
         for log in self.logs:
-            log.close()
+            log.close(until)
+        for log in self.logs:
             losses = log.losses()
             print(f"wrote {log.path} ({log.kind}, {log.written} frames){'; ' + losses if losses else ''}",
                   file=self.out)
@@ -192,10 +194,11 @@ class Session:
 
     def close(self) -> None:
         """End the logs, close the link (its report says what it carried and refused)."""
+        until = time.monotonic() + DRAIN_S
         for log in self.logs:
-            log.close()
+            log.close(until)
         if self.picture is not None:
-            self.picture.close()
+            self.picture.close(until)
         if self.link is not None:
             print(self.link.report(), file=self.out)
             self.link.close()

@@ -7,6 +7,7 @@ from __future__ import annotations
 import fcntl
 import os
 import re
+import select
 import shutil
 import signal
 import subprocess
@@ -15,7 +16,7 @@ import tempfile
 import threading
 import time
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -90,11 +91,16 @@ class Running:
 
 
 @contextmanager
-def started(argv: list[str], banner: str) -> Iterator[Running]:
-    """`appsim ARGV` running, once it has printed `banner`; killed at the end whatever happened."""
+def started(argv: list[str], banner: str, ready: Callable[[], bool] | None = None) -> Iterator[Running]:
+    """`appsim ARGV` running, once it has printed `banner` (or `ready()` says it runs: stdout may be held in a buffer
+    until it is full); killed at the end whatever happened."""
     running = Running(argv, banner)
     try:
-        assert running.seen.wait(60) and running.process.poll() is None, "".join(running.out + running.err)
+        ends = time.monotonic() + 60
+        while not (running.seen.is_set() or (ready is not None and ready())) and time.monotonic() < ends:
+            time.sleep(0.05)
+        assert running.process.poll() is None, "".join(running.out + running.err)
+        assert running.seen.is_set() or (ready is not None and ready()), "it never started"
         yield running
     finally:
         running.process.kill()
@@ -109,7 +115,8 @@ def test_a_fifo_whose_reader_stalls_never_blocks_the_run_and_ctrl_c_ends_it_with
     stalled = os.open(line, os.O_RDONLY | os.O_NONBLOCK)        # a reader that opens it and never reads
     fcntl.fcntl(stalled, F_SETPIPE_SZ, SMALLEST_PIPE)
     try:
-        with started([arg.format(fifo=line, tmp=tmp_path) for arg in argv], banner) as running:
+        with started([arg.format(fifo=line, tmp=tmp_path) for arg in argv], banner,
+                     ready=lambda: bool(select.select([stalled], [], [], 0)[0])) as running:
             time.sleep(3)                                       # long enough to fill the pipe, in real time too
             _, err = running.interrupt()
     finally:

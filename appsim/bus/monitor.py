@@ -214,8 +214,9 @@ class EventFile:
         """What a FIFO's, a pipe's or a terminal's reader did not get, in a few words ("" if nothing was lost)."""
         return self._file.losses("frame")
 
-    def close(self) -> None:
-        """End the file as its format ends: after a failed write, as far as it goes."""
+    def close(self, drain_until: float | None = None) -> None:
+        """End the file as its format ends (after a failed write, as far as it goes); a stream's reader gets until
+        `drain_until` to take what waits for it (`OutputFile.close`)."""
         if self._closed:
             return
         self._closed = True
@@ -223,7 +224,7 @@ class EventFile:
             self._finish()
             self._file.commit(counted=False)
         with suppress(OSError):
-            self._file.close()
+            self._file.close(drain_until)
 
     def __enter__(self) -> EventFile:
         return self
