@@ -18,6 +18,7 @@ from appsim.workshop.course import CLASSROOM_BIT_RATE, STATIONS, exercise_name
 from appsim.workshop.workspace import FOLDER as NOTEBOOKS_FOLDER
 
 HOUR, DAY = 3600, 86400
+DEMO_SECONDS, BOARD_SECONDS, CLASSROOM_SECONDS = 2.0, 0.5, 2.0
 INTERRUPTED = 130               # the exit status after Ctrl-C: 128 + SIGINT, as shells report it
 
 
@@ -123,7 +124,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return session.cmd_demo(args)
 
 
+def _serving(args: argparse.Namespace, default_seconds: float, what: str) -> None:
+    """--serve: the run lasts a day unless --seconds says (Ctrl-C stops it), and the programs are told what it is."""
+    if args.seconds is None:
+        args.seconds = DAY if args.serve else default_seconds
+    args.serving = what
+
+
 def cmd_board(args: argparse.Namespace) -> int:
+    _serving(args, BOARD_SECONDS, f"{Path(args.firmware).name} on one APP023 board")
     from appsim import session
     return session.cmd_board(args)
 
@@ -132,6 +141,7 @@ def cmd_classroom(args: argparse.Namespace) -> int:
     if args.station is not None and args.join is None:
         args.usage_error("--station says which station your firmware takes, so it goes with --join: "
                          "--join my_ex3.py --station 2")
+    _serving(args, CLASSROOM_SECONDS, f"the classroom at exercise {args.exercise}")
     from appsim import session
     return session.cmd_classroom(args)
 
@@ -189,6 +199,12 @@ def cmd_notebooks(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_dbc(args: argparse.Namespace) -> int:
+    from appsim.workshop.frames import WORKSHOP_DBC
+    print(WORKSHOP_DBC)
+    return 0
+
+
 def cmd_grade(args: argparse.Namespace) -> int:
     from appsim.errors import GradeError
     from appsim.workshop.grading.grade import run
@@ -226,6 +242,22 @@ class _Version(argparse.Action):
             where = commit
         print(f"appsim {kit_version()}\ngit commit {where}")
         parser.exit()
+
+
+def cmd_gradescope_autograder(args: argparse.Namespace) -> int:
+    import random
+
+    from appsim.errors import GradeError
+    from appsim.workshop.grading.autograder import build
+    seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2**32)
+    try:
+        build(args.out, seed=seed, time_limit_s=args.time_limit, visibility=args.visibility)
+    except GradeError as error:
+        print(f"appsim gradescope-autograder: {error}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.out}: upload it as the assignment's autograder (Gradescope: Configure Autograder, zip file "
+          f"upload). Seed {seed}: `appsim grade SUBMISSION --seed {seed}` gives the same marks (docs/grading.md)")
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -289,9 +321,16 @@ def build_parser() -> argparse.ArgumentParser:
     monitor.add_argument("--transport", choices=("pty", "socket"), default="pty",
                          help="pty (a /dev/pts path) or socket (socket://127.0.0.1:PORT for pyserial)")
 
-    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0)):
-        sub.add_argument("--seconds", type=_seconds, default=default_seconds,
-                         help=f"simulated time to run, up to a day (default {default_seconds:g} s)")
+    demo.add_argument("--seconds", type=_seconds, default=DEMO_SECONDS,
+                      help=f"simulated time to run, up to a day (default {DEMO_SECONDS:g} s)")
+    for sub, default_seconds in ((board, BOARD_SECONDS), (classroom, CLASSROOM_SECONDS)):
+        sub.add_argument("--seconds", type=_seconds, default=None,
+                         help=f"simulated time to run, up to a day (default {default_seconds:g} s; with --serve a "
+                              "day, until Ctrl-C)")
+        sub.add_argument("--serve", nargs="?", const="classroom", metavar="NAME",
+                         help="serve the bus to python-can programs of this user on this machine (127.0.0.1 only), "
+                              "in real time: can.Bus(interface='appsim', channel=NAME), python -m can.viewer -i appsim "
+                              "-c NAME (default NAME: classroom; docs/pythoncan.md)")
     monitor.add_argument("--seconds", type=_seconds, default=60.0,
                          help="how long the monitor runs, in seconds of real time: it stops then (default 60 s, "
                               "up to a day; Ctrl-C stops it sooner)")
@@ -302,6 +341,10 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--vcd", type=Path, metavar="FILE",
                          help="write the CAN line's waveform as it goes, a VCD for PulseView or sigrok-cli's CAN "
                               "decoder; a FIFO or a pipe too, which never holds the run up (docs/traces.md)")
+    for sub in (demo, board, classroom):
+        sub.add_argument("--dbc", nargs="?", const="", metavar="FILE",
+                         help="show each frame's signals under it, read through a CAN database: FILE, or without "
+                              "it the workshop's (appsim dbc prints where it is)")
     for sub in (board, classroom, monitor):
         sub.add_argument("--log", type=Path, action="append", metavar="FILE",
                          help="write every frame as it goes: .log (candump), .asc, .blf or .csv (give --log again "
@@ -362,6 +405,28 @@ def build_parser() -> argparse.ArgumentParser:
     notebooks.add_argument("folder", nargs="?", type=Path, default=Path(NOTEBOOKS_FOLDER), metavar="FOLDER",
                            help=f"where your notebooks go (default ./{NOTEBOOKS_FOLDER}, which git ignores)")
     notebooks.set_defaults(handler=cmd_notebooks)
+
+
+    dbc = commands.add_parser(
+        "dbc", help="where the workshop's CAN database (DBC) is, for cantools and other DBC tools",
+        description="Print the path of workshop.dbc, the workshop's frames as a CAN database (0x088, 0x081..0x086, "
+                    "0x100..0x150 with their A/D value): cantools decode \"$(appsim dbc)\" < trace.log")
+    dbc.set_defaults(handler=cmd_dbc)
+
+    autograder = commands.add_parser(
+        "gradescope-autograder", help="write a Gradescope autograder zip that grades as appsim grade does",
+        description="Write OUT.zip for a Gradescope programming assignment: setup.sh installs the kit (from a wheel "
+                    "inside the zip) and bubblewrap; run_autograder grades /autograder/submission with appsim grade's "
+                    "checks, seed and verdict, into results.json, one test per check. See docs/grading.md.")
+    autograder.add_argument("out", type=Path, metavar="OUT.zip", help="the zip to write")
+    autograder.add_argument("--seed", type=_seed, help="seed of the random inputs, the same for every student "
+                                                       "(default: drawn and printed)")
+    autograder.add_argument("--time-limit", type=_cpu_seconds, default=60.0,
+                            help="CPU seconds per exercise, as appsim grade's (default 60)")
+    autograder.add_argument("--visibility", default="visible",
+                            choices=("visible", "after_due_date", "after_published", "hidden"),
+                            help="when students see each check's result on Gradescope (default visible)")
+    autograder.set_defaults(handler=cmd_gradescope_autograder)
 
     checking = commands.add_parser(
         "check", help="check your firmware for one exercise, as the notebook does",

@@ -16,7 +16,9 @@ from appsim.board.app023 import APP023
 from appsim.board.usbcdc import UsbCdc
 from appsim.bus.wire import Bus
 from appsim.chip.mcu import PIC18F8680
+from appsim.chip.sfr import current_mcu
 from appsim.firmware import *
+from appsim.firmware.runtime import CALL_CYCLES
 from appsim.sim import PS_PER_SECOND, Simulator
 
 KIT = Path(__file__).resolve().parent.parent
@@ -30,15 +32,20 @@ FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD
 LOST_LINE = re.compile(r"^# lost (\d+) frames? \(queue full\)$")
 
 
+
+def wait_tenths_of_ms(units: int) -> None:
+    """What Delay1KTCYx(units) waits, for any count: C18's takes 1..255 (0 means 256), these waits are longer."""
+    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * units)
+
 def sender(frames, *, start_ms: float, gap_ms: float):
     """Firmware sending `frames` (id, flags, data) one after the other, `gap_ms` apart."""
     def main():
         CANInitialize(*CLASSROOM, CAN_CONFIG_ALL_MSG)
-        Delay1KTCYx(round(start_ms * 10))
+        wait_tenths_of_ms(round(start_ms * 10))
         for can_id, flags, data in frames:
             while not CANSendMessage(can_id, data, len(data), flags):
                 pass
-            Delay1KTCYx(round(gap_ms * 10))
+            wait_tenths_of_ms(round(gap_ms * 10))
         while True:
             if CANIsRxReady():
                 CANReceiveMessage()

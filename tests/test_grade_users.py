@@ -92,7 +92,8 @@ def test_the_grading_and_attack_tests_pass_as_an_ordinary_user():
         runuser = shutil.which("runuser") or "/usr/sbin/runuser"     # found on root's PATH, not the user's
         result = subprocess.run(
             [runuser, "-u", USER, "--", USER_PYTHON, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
-             "tests/test_grade.py", "tests/test_grade_attacks.py"],
+             "tests/test_grade.py", "tests/test_grade_attacks.py", "tests/test_grade_mounts.py",
+             "tests/test_grade_classes.py"],
             cwd=copy, env=env, capture_output=True, text=True, timeout=900)
         assert result.returncode == 0, result.stdout[-6000:] + result.stderr[-3000:]
         assert " passed" in result.stdout and "skipped" not in result.stdout.splitlines()[-1]

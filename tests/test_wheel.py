@@ -132,3 +132,16 @@ def test_grade_grades_a_class_with_the_wheel(installed, elsewhere):
     version = appsim(installed, elsewhere, "--version").stdout.splitlines()
     assert version[0] == f"appsim {record['kit']}" and version[1].startswith(f"git commit {record['commit']}"), \
         "the record names the kit as --version does: a gradebook matched to its commit"
+
+
+def test_the_workshop_dbc_and_the_python_can_interface_ship_in_the_wheel(installed, elsewhere):
+    where = appsim(installed, elsewhere, "dbc")
+    assert where.returncode == 0, where.stderr
+    dbc = Path(where.stdout.strip())
+    assert dbc.is_file() and "site-packages" in dbc.parts, dbc
+    result = appsim(installed, elsewhere, "classroom", "--exercise", "2", "--dbc", "--seconds", "0.2")
+    assert "MASTER_BROADCAST: TxData0=1 TxData1=2 TxData2=3 ADRES=" in result.stdout, result.stdout + result.stderr
+    found = subprocess.run([str(installed / "python"), "-c", "import can; print(can.interface."
+                            "_get_class_for_interface('appsim').__module__)"], cwd=elsewhere, capture_output=True,
+                           text=True, env={**os.environ, "PYTHONPATH": ""})
+    assert found.stdout.strip() == "appsim.can.pythoncan", found.stderr

@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any, TextIO
+from typing import IO, Any, NamedTuple, TextIO
 
 from appsim import provenance
 from appsim.errors import GradeError, OutputError, SandboxUnavailable
@@ -53,11 +53,12 @@ ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest fi
 def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: Path | None = None,
         gradescope_path: str | Path | None = None, jobs: int | None = None, seed: int | None = None,
         limits: Limits = DEFAULT_LIMITS, trusted: bool = False, regrade: bool = False,
-        out: TextIO = sys.stdout) -> list[Record]:
+        out: TextIO = sys.stdout, memory: dict[tuple[str, str], Memory] | None = None) -> list[Record]:
     """Grade the submissions under `paths`, resuming from `results`; the records of these submissions, by name.
 
     `gradescope_path` is a folder of NAME.json (for several submissions, or given as a folder: one that exists or a
-    name ending in "/"), else the one submission's results.json."""
+    name ending in "/"), else the one submission's results.json. `memory`, if given, gets the grading worker's memory
+    for each (submission, exercise) graded (see `Memory`)."""
     if sys.platform == "win32":
         raise GradeError("appsim grade runs on Linux (or macOS with --trusted); on Windows, run it in WSL")
     results = results or default_results([Path(p) for p in paths])
@@ -90,7 +91,10 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
                   f"grades), kit {kit} (git commit {commit or 'unknown'}), results in {results}"
                   + (f"; {kept} already graded there with this seed and kit, kept" if kept else "")
                   + ("; NOT ISOLATED (--trusted)" if trusted else ""), file=out, flush=True)
-            for number, record in enumerate(pool.grade(todo, seed, kit, commit), start=1):
+            for submission in submissions:
+                if submission.note:
+                    print(f"appsim grade: {printable(submission.name)}: {printable(submission.note)}", file=out)
+            for number, record in enumerate(pool.grade(todo, seed, kit, commit, memory), start=1):
                 with _ctrl_c_held():                # a record kept is a record reported, and the other way round
                     _writing(results, functools.partial(book.append, record))
                     previous[record["submission"]] = record
@@ -228,8 +232,10 @@ class _Pool:
         for worker in self.workers:
             worker.end()
 
-    def grade(self, submissions: Sequence[Submission], seed: int, kit: str, commit: str | None) -> Iterator[Record]:
-        """Each submission's record as soon as all its exercises are graded (in no fixed order)."""
+    def grade(self, submissions: Sequence[Submission], seed: int, kit: str, commit: str | None,
+              memory: dict[tuple[str, str], Memory] | None = None) -> Iterator[Record]:
+        """Each submission's record as soon as all its exercises are graded (in no fixed order); `memory` gets what
+        each exercise's worker held (see `Memory`)."""
         waiting = collections.deque(_Task(n, s, e) for n, (s, e) in
                                     enumerate((s, e) for s in submissions for e in ORDER))
         done: dict[str, dict[str, Record]] = {s.name: {} for s in submissions}
@@ -247,7 +253,8 @@ class _Pool:
             marks[task.exercise] = result
             if len(marks) < len(EXERCISES):
                 return None
-            return record_of(task.submission.name, task.submission.digest, seed, kit, marks, commit)
+            return record_of(task.submission.name, task.submission.digest, seed, kit, marks, commit,
+                             task.submission.origin)
 
         try:
             for worker in self.workers:
@@ -260,7 +267,9 @@ class _Pool:
                     selector.unregister(worker.stdout)
                     task, worker.task = worker.task, None
                     assert task is not None
-                    result = _result(line)
+                    result, held = _result(line)
+                    if held is not None and memory is not None:
+                        memory[task.submission.name, task.exercise] = held
                     # it died (or wrote half a line): the grader's fault, not the student's
                     if result is None:
                         result = _lost(task, seed, "the grader's worker process ended while grading it "
@@ -298,15 +307,29 @@ class _Pool:
         return _Worker(self.settings, self.processors[index % len(self.processors)] if self.processors else None)
 
 
-def _result(line: str) -> Record | None:
-    """A worker's answer line, or None if it is not one (the worker died mid-line)."""
+class Memory(NamedTuple):
+    """What a grading worker held (its resident set, kB) when it took an exercise, and at its peak while grading it."""
+
+    start_kb: int
+    peak_kb: int
+
+    @property
+    def growth_kb(self) -> int:
+        return self.peak_kb - self.start_kb
+
+
+def _result(line: str) -> tuple[Record | None, Memory | None]:
+    """A worker's answer line (None if it is not one: the worker died mid-line) and the memory it held for it."""
     if not line.endswith("\n"):
-        return None
+        return None, None
     try:
-        result = json.loads(line)["result"]
-    except (ValueError, KeyError, TypeError):
-        return None
-    return result if isinstance(result, dict) else None
+        answer = json.loads(line)
+        result, held = answer["result"], answer.get("memory_kb")
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return None, None
+    memory = Memory(*held) if isinstance(held, list) and len(held) == 2 and all(isinstance(v, int) for v in held) \
+        else None
+    return (result if isinstance(result, dict) else None), memory
 
 
 def _lost(task: _Task, seed: int, why: str) -> Record:

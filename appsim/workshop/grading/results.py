@@ -205,11 +205,11 @@ def summary_line(record: Record) -> str:
 
 
 def record_of(name: str, digest: str, seed: int, kit: str, exercises: Mapping[str, Record],
-              commit: str | None = None) -> Record:
+              commit: str | None = None, origin: str = "") -> Record:
     """A submission's record; `commit` is the kit's git commit (`appsim.provenance.commit`), for the instructor to
-    match a grade to (the record is kept or graded again by `kit` alone)."""
+    match a grade to (the record is kept or graded again by `kit` alone); `origin`, where in the class it came from."""
     ordered = {exercise: exercises[exercise] for exercise in EXERCISES}
-    return {"submission": name, "hash": digest, "seed": seed, "kit": kit, "commit": commit,
+    return {"submission": name, "origin": origin, "hash": digest, "seed": seed, "kit": kit, "commit": commit,
             "score": sum(e["score"] for e in ordered.values()),
             "max_score": sum(e["max_score"] for e in ordered.values()),
             "exercises": ordered}
