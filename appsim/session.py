@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import io
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -298,8 +299,6 @@ def print_lcds(boards: list[APP023], out: TextIO) -> None:
 def save_lcd_picture(boards: list[APP023], file: OutputFile) -> str:
     """One PNG with every board's LCD, named, as they would look on the desks, into `file`: what it holds, in a few
     words."""
-    import io
-
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
