@@ -8,6 +8,7 @@ from __future__ import annotations
 import gc
 import logging
 import random
+import sys
 import threading
 import time
 import tracemalloc
@@ -30,12 +31,12 @@ EVENT_BYTES = 250               # what one may hold at most: appsim/bus/trace.py
 WARM_UP_S = 0.05                # the boards' CANInitialize, not timed
 
 
-def _classroom(trace_window: int | None = None) -> tuple[Simulator, Bus]:
+def _classroom(trace_window: int | None = None) -> tuple[Simulator, Bus, Classroom]:
     sim = Simulator()
     bus = Bus(sim, BIT_RATE) if trace_window is None else Bus(sim, BIT_RATE, trace_window=trace_window)
-    Classroom(bus, 6, seed=6, monitor=False)
+    room = Classroom(bus, 6, seed=6, monitor=False)
     sim.run(until=ps(WARM_UP_S))
-    return sim, bus
+    return sim, bus, room
 
 
 class ErrorFlood:
@@ -79,7 +80,7 @@ class FloodRun:
 
 def error_flood(simulated_s: float, *, varied: bool) -> FloodRun:
     """`simulated_s` of the classroom under an `ErrorFlood`, timed."""
-    sim, bus = _classroom()
+    sim, bus, _ = _classroom()
     ErrorFlood(bus, varied=varied)
     before, errors_before = bus.trace.total, bus.trace.errors
     started = time.perf_counter()
@@ -94,7 +95,7 @@ def error_flood(simulated_s: float, *, varied: bool) -> FloodRun:
 def bytes_per_event(flood: str) -> float:
     """What a trace event holds in memory (tracemalloc: what `EVENTS_MEASURED` of them and what the bus keeps for them
     take, freed when they go): the classroom's own frames (`flood` ""), or "steady" or "varied" error frames."""
-    sim, bus = _classroom(EVENTS_MEASURED)
+    sim, bus, _ = _classroom(EVENTS_MEASURED)
     if flood:
         ErrorFlood(bus, varied=flood == "varied")
     sim.run(until=sim.now + ps(0.2))
@@ -134,6 +135,9 @@ class PeerRun:
     accounted: int                       # of them, counted by the link: received, dropped unread, still unread
     max_lag_s: float
     lateness: str
+    most_unread: int                     # the most frames python-can's queue held for the link at a poll
+    lcd_writes: int                      # what the boards' LCD histories hold at the end (HISTORY_WRITES each at most)
+    lcd_mb: float                        # and about how much memory that is
 
     def growth_mb(self, after_s: float) -> float:
         """How much the resident memory grew from `after_s` into the run to its end."""
@@ -144,7 +148,7 @@ class PeerRun:
 def virtual_peer(seconds: float, *, sample_s: float = 1.0) -> PeerRun:
     """The classroom linked in real time to python-can's virtual bus, and a peer in this process sending 8-byte frames
     on it as fast as it can (reading and dropping what it receives, as a peer does) for `seconds` of wall time."""
-    sim, bus = _classroom()
+    sim, bus, room = _classroom()
     channel = f"appsim-bench-flood-{time.monotonic_ns()}"
     link = BusLink(bus, interface="virtual", channel=channel)
     peer = can.Bus(interface="virtual", channel=channel)
@@ -160,6 +164,8 @@ def virtual_peer(seconds: float, *, sample_s: float = 1.0) -> PeerRun:
 
     clock = WallClock(sim)
     clock.add_poller(link.poll)
+    most = [0]
+    clock.add_poller(lambda: most.__setitem__(0, max(most[0], link.unread)))
     thread = threading.Thread(target=flood, daemon=True)
     samples = [_rss_mb()]
     told = logging.getLogger("appsim")
@@ -178,4 +184,7 @@ def virtual_peer(seconds: float, *, sample_s: float = 1.0) -> PeerRun:
         stop.set()
         link.close()
         peer.shutdown()
-    return PeerRun(seconds, tuple(samples), sample_s, sent[0], accounted, clock.max_lag_s, clock.lateness())
+    writes = [write for board in room.boards for write in board.glcd.history]
+    lcd_mb = sum(sys.getsizeof(w) + sys.getsizeof(w.text) + sys.getsizeof(w.time_ps) + 8 for w in writes) / 2**20
+    return PeerRun(seconds, tuple(samples), sample_s, sent[0], accounted, clock.max_lag_s, clock.lateness(), most[0],
+                   len(writes), lcd_mb)

@@ -45,7 +45,10 @@ ROWS = (
     "memory of a trace event: the classroom's frames",
     "memory of a trace event: a steady error flood",
     "memory of a trace event: a varied error flood",
-    "linked classroom, an in-process virtual peer at full rate for 3 s: memory growth after the first 0.6 s",
+    "linked classroom, an in-process virtual peer at full rate for 3 s: most frames python-can's queue held for the "
+    "link",
+    "linked classroom, an in-process virtual peer at full rate for 3 s: resident memory growth after the first 0.6 s",
+    "linked classroom, an in-process virtual peer at full rate for 3 s: most it fell behind real time",
 )
 
 
