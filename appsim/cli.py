@@ -102,15 +102,20 @@ def _top(text: str) -> int:
 
 
 def _injection(text: str) -> tuple[str, str, int, int | None]:
-    """NODE:KIND:BIT[:ID] -> the arguments of `Bus.inject` (node, kind, bit, can_id)."""
-    from appsim.bus.bitlevel import ERROR_KINDS
+    """NODE:KIND:BIT[:ID] -> the arguments of `Bus.inject` (node, kind, bit, can_id), refused if it could never fire."""
+    from appsim.bus.bitlevel import ERROR_KINDS, Injection
+    from appsim.errors import InjectionError
     what = (f"an injected error is NODE:KIND:BIT[:ID], KIND one of {', '.join(ERROR_KINDS)}, BIT counted from SOF = 0, "
             "ID the frame's identifier (default: the node's next frame), e.g. station1:stuff:30:0x100")
     parts = text.split(":")
     if not 3 <= len(parts) <= 4 or parts[1] not in ERROR_KINDS:
         raise argparse.ArgumentTypeError(f"{what}; got {text!r}")
-    bit = _in_range(parts[2], what, lambda value: value >= 0)
+    bit = _number(parts[2], what, lambda t: int(t, 0))
     can_id = _number(parts[3], what, lambda t: int(t, 0)) if len(parts) == 4 else None
+    try:
+        Injection(parts[0], parts[1], bit, can_id)
+    except InjectionError as error:
+        raise argparse.ArgumentTypeError(f"{text} could never fire: {error}") from None
     return parts[0], parts[1], bit, can_id
 
 
@@ -298,9 +303,9 @@ def build_parser() -> argparse.ArgumentParser:
                                 "must be that station's, 0x100 + 0x10 x (station - 1)")
     classroom.add_argument("--full-trace", action="store_true", help="print every frame, not the first 40")
     classroom.add_argument("--inject", type=_injection, action="append", metavar="NODE:KIND:BIT[:ID]",
-                           help="make NODE see an error in its next frame (with identifier ID): KIND bit, stuff, "
-                                "crc, form, ack or dominant, at bit BIT from SOF (docs/errors.md); give it again "
-                                "for more")
+                           help="make NODE see an error in its next frame in Normal mode (with identifier ID): KIND "
+                                "bit, stuff, crc, form, ack or dominant, at bit BIT from SOF (docs/errors.md); give it "
+                                "again for more (for one node: in successive frames); one that never fires is reported")
 
     monitor = commands.add_parser(
         "monitor", help="Demo1: the CAN monitor's USB-CDC serial port, live",
@@ -335,7 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     for sub in (demo, board, classroom, monitor):
         sub.add_argument("--vcd", type=Path, metavar="FILE",
                          help="write the CAN line's waveform as it goes, a VCD for PulseView or sigrok-cli's CAN "
-                              "decoder (docs/traces.md)")
+                              "decoder; a FIFO or a pipe too, which never holds the run up (docs/traces.md)")
     for sub in (demo, board, classroom):
         sub.add_argument("--dbc", nargs="?", const="", metavar="FILE",
                          help="show each frame's signals under it, read through a CAN database: FILE, or without "

@@ -44,6 +44,11 @@ class FormError(WireError):
     """A fixed-form bit (CRC delimiter, ACK delimiter, EOF) is dominant, or the sequence ends early."""
 
 
+class InjectionError(AppsimError, ValueError):
+    """An error to inject that could never happen on the bus (a bit past every frame, a kind at a bit where it cannot
+    be, an identifier no frame can have), with why and what would."""
+
+
 class SlcanError(AppsimError, ValueError):
     """A line that is not an SLCAN command, with what is wrong; the adapter answers it with BELL."""
 

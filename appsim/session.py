@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import io
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -14,18 +15,20 @@ from typing import TextIO
 import can
 
 from appsim.board.app023 import APP023
-from appsim.board.usbcdc import UsbCdc
+from appsim.board.usbcdc import LONGEST_LINE, UsbCdc
 from appsim.bus.link import BusLink
-from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, cannot_write, error_counters, summary
+from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, error_counters, summary
 from appsim.bus.realtime import WallClock
 from appsim.bus.serve import ClassroomServer
 from appsim.bus.signals import DbcError, Signals
 from appsim.bus.waveform import WaveformLog
 from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
+from appsim.chip.usart import PC_BAUD
 from appsim.firmware.loader import constants, load_firmware
+from appsim.output import DRAIN_S, OutputFile, cannot_write, check_distinct
 from appsim.sim import PS_PER_SECOND, Simulator, ps
-from appsim.workshop.checks.demo1 import FRAME_LINE, LOST_COUNT
+from appsim.workshop.checks.demo1 import BAUD_FIX, FRAME_LINE, LOST_COUNT
 from appsim.workshop.classroom import Classroom, station_defines
 from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES, SOLUTIONS, STATIONS, station_ids
 from appsim.workshop.faults import board_fault
@@ -74,11 +77,13 @@ def dbc_signals(dbc: str | None) -> Signals | None:
 class Session:
     """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time.
 
-    Its files (`logs`: the --log paths, then the --vcd waveform) are opened first, so a path that cannot be written
-    stops the command before anything runs (`OutputError`); each gets every event as the bus carries it. A session is
-    closed (files ended, link closed and its report printed) when its `with` block ends."""
+    Its files (`logs`: (option, path) of each log, then the --vcd waveform, then the `picture` written at the end)
+    are checked first: two that name one file, or one that names the firmware it runs, stop the command before
+    anything runs (`OutputError`), as does a path that cannot be written; each log gets every event as the bus carries
+    it. A session is closed (files ended, link closed and its report printed) when its `with` block ends."""
 
-    def __init__(self, args: argparse.Namespace, out: TextIO, *, logs: Sequence[Path] = ()):
+    def __init__(self, args: argparse.Namespace, out: TextIO, *, logs: Sequence[tuple[str, Path]] = (),
+                 picture: tuple[str, Path] | None = None):
         self.sim = Simulator()
         self.bus = Bus(self.sim, CLASSROOM_BIT_RATE)
         self.out = out
@@ -86,12 +91,17 @@ class Session:
         self.server: ClassroomServer | None = None
         self.trace = LiveTrace(self.bus, signals=dbc_signals(getattr(args, "dbc", None)))
         self.logs: list[EventFile] = []
+        self.picture: OutputFile | None = None
         self.reported: set[str] = set()          # boards whose stop was reported
+        vcd = getattr(args, "vcd", None)
+        check_distinct([*logs, ("--vcd", vcd), *([picture] if picture else [])], firmware_read(args))
         try:
-            for path in logs:
+            for _, path in logs:
                 self._keep(TraceLog(path))
-            if getattr(args, "vcd", None):
-                self._keep(WaveformLog(args.vcd, self.bus))
+            if vcd:
+                self._keep(WaveformLog(vcd, self.bus))
+            if picture:
+                self.picture = OutputFile(picture[1], keep_until_written=True)
             if getattr(args, "interface", None):
                 try:
                     self.link = BusLink(self.bus, interface=args.interface, channel=args.channel)
@@ -144,7 +154,11 @@ class Session:
                       file=self.out, flush=True)
             if live:
                 clock.add_poller(lambda: self._show(self.trace.new_lines()))
-            clock.run(seconds)
+            try:
+                clock.run(seconds)
+            finally:
+                if late := clock.lateness():
+                    print(f"the run fell {late}", file=self.out)
         finally:
             if progress:
                 progress.done()
@@ -176,9 +190,14 @@ class Session:
         print(summary(self.bus), file=self.out)
 
     def print_written(self) -> None:
-        """What each of the session's files holds, now that the run is over."""
+        """What each of the session's files holds, now that the run is over (and what a FIFO's reader did not get)."""
+        until = time.monotonic() + DRAIN_S          # every FIFO's reader together: Ctrl-C ends a run within 1 s
         for log in self.logs:
-            print(f"wrote {log.path} ({log.kind}, {log.written} frames)", file=self.out)
+            log.close(until)
+        for log in self.logs:
+            losses = log.losses()
+            print(f"wrote {log.path} ({log.kind}, {log.written} frames){'; ' + losses if losses else ''}",
+                  file=self.out)
 
     def report_failures(self) -> None:
         """Say once, for each board whose firmware is no longer running, which file it ran and why it stopped, with
@@ -193,15 +212,26 @@ class Session:
             ran = f" ({process.filename})" if process.filename else ""
             print(f"{mcu.name}{ran} stopped: {fault.message}", file=sys.stderr)
 
+    def report_unfired(self) -> int:
+        """Say which injected errors never fired (all their frames), and why: how many."""
+        lines = self.bus.injections.not_fired()
+        for line in lines:
+            print(f"--inject {line}", file=sys.stderr)
+        return len(lines)
+
     def interrupted(self) -> str:
         """What a Ctrl-C leaves: where the run stopped and what the logs hold."""
-        kept = "".join(f"; {log.path} holds its first {log.written} frames" for log in self.logs)
+        kept = "".join(f"; {log.path} holds its first {log.written} frames"
+                       + (f" ({losses})" if (losses := log.losses()) else "") for log in self.logs)
         return f"interrupted (Ctrl-C) at {self.sim.now / PS_PER_SECOND:.3f} s of simulated time{kept}"
 
     def close(self) -> None:
         """End the logs, close the link (its report says what it carried and refused)."""
+        until = time.monotonic() + DRAIN_S
         for log in self.logs:
-            log.close()
+            log.close(until)
+        if self.picture is not None:
+            self.picture.close(until)
         if self.link is not None:
             print(self.link.report(), file=self.out)
             self.link.close()
@@ -222,40 +252,38 @@ Body = Callable[[argparse.Namespace, Session], None]
 Command = Callable[[argparse.Namespace], int]
 
 
-def logs_asked(args: argparse.Namespace) -> list[Path]:
+def logs_asked(args: argparse.Namespace) -> list[tuple[str, Path]]:
     """The logs `--log` names, if any."""
-    return list(args.log or [])
+    return [("--log", path) for path in args.log or []]
 
 
-def session_command(logs: Callable[[argparse.Namespace], list[Path]] = logs_asked) -> Callable[[Body], Command]:
-    """A command that runs a session: its `logs` are checked before anything runs (an `OutputError` for the caller);
-    a board that stopped is reported and makes the exit status 1; after Ctrl-C, the KeyboardInterrupt for the caller
-    says where the run stopped and what the logs hold."""
+def firmware_read(args: argparse.Namespace) -> list[tuple[str, Path | None]]:
+    """The firmware files a command reads (no output may be one of them)."""
+    board = getattr(args, "firmware", None)
+    join = getattr(args, "join", None)
+    return [("FIRMWARE", Path(board) if board else None), ("--join", Path(join) if join else None)]
+
+
+def session_command(logs: Callable[[argparse.Namespace], list[tuple[str, Path]]] = logs_asked,
+                    picture: Callable[[argparse.Namespace], tuple[str, Path]] | None = None
+                    ) -> Callable[[Body], Command]:
+    """A command that runs a session: its `logs` (and the `picture` it saves at the end) are checked before anything
+    runs (an `OutputError` for the caller); a board that stopped is reported and makes the exit status 1; after Ctrl-C,
+    the KeyboardInterrupt for the caller says where the run stopped and what the logs hold."""
     def decorate(body: Body) -> Command:
         @functools.wraps(body)
         def command(args: argparse.Namespace) -> int:
-            with Session(args, sys.stdout, logs=logs(args)) as session:
+            with Session(args, sys.stdout, logs=logs(args), picture=picture(args) if picture else None) as session:
                 try:
                     body(args, session)
                 except KeyboardInterrupt:
                     session.close()
                     raise KeyboardInterrupt(session.interrupted()) from None
                 session.report_failures()
-                return 1 if session.reported else 0
+                unfired = session.report_unfired()
+                return 1 if session.reported or unfired else 0
         return command
     return decorate
-
-
-def check_writable(path: Path) -> None:
-    """An `OutputError` now if `path` could not be written later; the file is left as it was."""
-    existed = path.exists()
-    try:
-        with path.open("ab"):
-            pass
-    except OSError as error:
-        raise cannot_write(path, error) from None
-    if not existed:
-        path.unlink()
 
 
 def print_lcds(boards: list[APP023], out: TextIO) -> None:
@@ -268,8 +296,9 @@ def print_lcds(boards: list[APP023], out: TextIO) -> None:
             print("   ".join(f"{line:<23}" for line in lines), file=out)
 
 
-def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
-    """One PNG with every board's LCD, named, as they would look on the desks."""
+def save_lcd_picture(boards: list[APP023], file: OutputFile) -> str:
+    """One PNG with every board's LCD, named, as they would look on the desks, into `file`: what it holds, in a few
+    words."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -283,13 +312,18 @@ def save_lcd_picture(boards: list[APP023], path: Path) -> Path:
         board.glcd.picture(ax=ax)
         ax.set_title(board.name, fontsize=10)
     figure.tight_layout()
+    png = io.BytesIO()
     try:
-        figure.savefig(path, dpi=100)
-    except OSError as error:
-        raise cannot_write(path, error) from None
+        figure.savefig(png, format="png", dpi=100)
     finally:
         plt.close(figure)
-    return path
+    file.write(png.getvalue())
+    try:
+        file.commit()
+        file.close()
+    except OSError as error:
+        raise cannot_write(file.path, error) from None
+    return "every LCD" if file.delivered else "every LCD, but its reader did not take the picture whole"
 
 
 def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
@@ -301,19 +335,18 @@ def workshop_in_progress(bus: Bus, seed: int) -> Classroom:
     return classroom
 
 
-def _demo_logs(args: argparse.Namespace) -> list[Path]:
+def _demo_logs(args: argparse.Namespace) -> list[tuple[str, Path]]:
     """The demo's --out folder, made if need be, and the logs it holds."""
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
         raise cannot_write(args.out, error) from None
-    return [args.out / "trace.log", args.out / "trace.asc"]
+    return [("--out", args.out / "trace.log"), ("--out", args.out / "trace.asc")]
 
 
-@session_command(logs=_demo_logs)
+@session_command(logs=_demo_logs, picture=lambda args: ("--out", args.out / "lcds.png"))
 def cmd_demo(args: argparse.Namespace, session: Session) -> None:
     out = session.out
-    check_writable(args.out / "lcds.png")
     classroom = workshop_in_progress(session.bus, args.seed)
     print("CAN Workshop 202, simulated: the master console and six APP023 stations on one 125 kbit/s bus.\n"
           "Station k is working on exercise k: Ex1 loopback (off the bus), Ex2 periodic data, Ex3 filters,\n"
@@ -324,10 +357,11 @@ def cmd_demo(args: argparse.Namespace, session: Session) -> None:
     session.print_trace()
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
-    picture = save_lcd_picture(classroom.boards, args.out / "lcds.png")
+    assert session.picture is not None
+    holds = save_lcd_picture(classroom.boards, session.picture)
     print("", file=out)
     session.print_written()
-    print(f"wrote {picture} (every LCD)", file=out)
+    print(f"wrote {session.picture.path} ({holds})", file=out)
 
 
 @session_command()
@@ -390,7 +424,6 @@ class MonitorTally:
     lines add up to; its RXB0 and RXB1 were full: counted on the bus), or neither. It counts the lines as they leave
     the board's USART, whether or not a program reads them: what the USB-CDC bridge loses is `UsbCdc.report()`'s."""
 
-    LONGEST_LINE = 256                # the board's longest line is under 70 characters: more is not a line
 
     def __init__(self, bus: Bus, board: APP023):
         self.name = board.name
@@ -417,7 +450,7 @@ class MonitorTally:
 
     def _byte(self, byte: int, time_ps: int) -> None:
         if byte not in b"\r\n":
-            if len(self._line) < self.LONGEST_LINE:
+            if len(self._line) < LONGEST_LINE:
                 self._line.append(byte)
             return
         line = self._line.decode("latin-1").replace("\0", "")   # C18's putsUSART sends the NUL too
@@ -498,6 +531,10 @@ def cmd_monitor(args: argparse.Namespace, session: Session) -> None:
                                           lambda: f"{tally.progress()}; USB: {usb.lost_to_pc:,} bytes lost"))
         finally:            # after Ctrl-C too: what became of the frames, and a port left as a program expects
             print(f"{tally.summary(session.sim.now / PS_PER_SECOND)}\n{usb.report()}", file=out)
+            for baud in usb.misread:
+                print(f"Demo1's firmware set its USART to {baud:,} baud, but the port runs at {PC_BAUD:,} baud (the "
+                      f"PIC18F2550 bridge's UART, 19200 8N1): what reached the PC is garbage. {BAUD_FIX}: "
+                      "OpenUSART(..., 129) with USART_BRGH_HIGH.", file=out)
             session.print_written()
             out.flush()
             if usb.in_use():

@@ -9,8 +9,9 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from appsim.bus.link import PYTHON_QUEUE_FRAMES
 from appsim.workshop.course import SOLUTIONS
-from bench import busywait, fullload, grading, interrupts, knobs, linked, memory, pythoncan, served
+from bench import busywait, flood, fullload, grading, interrupts, knobs, linked, memory, pythoncan, served
 from bench.figures import Figure, machine, repeat, table
 
 
@@ -29,14 +30,17 @@ class Config:
     served_frames: int          # frames from one python-can program to another through the "appsim" interface
     memory_hogs: tuple[str, ...] | None     # bench.memory's firmware whose worker memory is measured (None: all)
     classroom_s: float          # simulated seconds of a classroom, polling against interrupt-driven stations
+    flood_s: float              # simulated seconds of the classroom under an error flood
+    peer_s: float               # wall seconds of the linked classroom with a flooding python-can peer in the process
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
               linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5, served_frames=5000,
-              memory_hogs=None, classroom_s=5.0)
+              memory_hogs=None, classroom_s=5.0, flood_s=5.0, peer_s=300.0)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
                linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1, served_frames=100,
-               memory_hogs=("call sites",), classroom_s=0.1)
+               memory_hogs=("call sites",), classroom_s=0.1, flood_s=0.1,
+               peer_s=3.0)
 
 
 def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
@@ -198,6 +202,40 @@ def _knobs(config: Config) -> list[Figure]:
     ]
 
 
+def _floods(config: Config) -> list[Figure]:
+    figures = []
+    for varied, what in ((False, "one failing frame sent again and again"),
+                         (True, "random data, each error at another bit: no two alike")):
+        runs = [flood.error_flood(config.flood_s, varied=varied) for _ in range(max(config.runs, 1))]
+        kind = "varied" if varied else "steady"
+        figures.append(Figure(f"real-time factor: Ex6 classroom under a {kind} error flood from outside, 125 kbit/s",
+                              "sim s / wall s", tuple(r.real_time_factor for r in runs), target=1,
+                              note=f"{what}; {runs[-1].error_frames / runs[-1].simulated_s:,.0f} error frames a "
+                                   "second, every frame bit by bit"))
+    for scenario, words in (("", "the classroom's frames"), ("steady", "a steady error flood"),
+                            ("varied", "a varied error flood")):
+        figures.append(Figure(f"memory of a trace event: {words}", "bytes",
+                              repeat(config.runs, lambda scenario=scenario: flood.bytes_per_event(scenario)),
+                              target=flood.EVENT_BYTES, lower_is_better=True,
+                              note=f"tracemalloc over {flood.EVENTS_MEASURED:,} events; appsim/bus/trace.py says "
+                                   "about 200"))
+    peer = flood.virtual_peer(config.peer_s, sample_s=max(1.0, config.peer_s / 30))
+    settled = config.peer_s / 5
+    name = f"linked classroom, an in-process virtual peer at full rate for {config.peer_s:g} s"
+    figures.append(Figure(f"{name}: most frames python-can's queue held for the link", "frames",
+                          (peer.most_unread,), target=2 * PYTHON_QUEUE_FRAMES, lower_is_better=True,
+                          note=f"kept to {PYTHON_QUEUE_FRAMES:,} at each poll; the peer sent {peer.sent:,} frames, the "
+                               f"link accounted for {peer.accounted:,}"))
+    figures.append(Figure(f"{name}: resident memory growth after the first {settled:g} s", "MB",
+                          (peer.growth_mb(settled),),
+                          note=f"{peer.rss_mb[0]:.0f} MB at the start, {peer.rss_mb[-1]:.0f} MB at the end; meanwhile "
+                               f"the boards' LCD histories fill towards their cap ({peer.lcd_writes:,} writes, about "
+                               f"{peer.lcd_mb:.1f} MB, at the end), as without any peer"))
+    figures.append(Figure(f"{name}: most it fell behind real time", "wall s", (peer.max_lag_s,),
+                          note="the peer's thread takes its share of the CPU and the GIL; the run says so once"))
+    return figures
+
+
 def _served(config: Config) -> list[Figure]:
     through, bare, limits = [], [], []
     for _ in range(max(config.runs, 1)):
@@ -233,7 +271,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
         config = Config(**{**config.__dict__, "runs": args.runs})
     figures: list[Figure] = []
-    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _linked, _knobs, _served):
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _linked, _knobs, _served,
+                 _floods):
         figures += part(config)
     print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
     print(table(figures))

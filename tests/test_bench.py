@@ -40,6 +40,15 @@ ROWS = (
     "Gradescope run / appsim grade, one full submission",
     "notebook knob turn: the live classroom goes on 0.2 s, LCD redrawn (Ex2..Ex6)",
     "notebook knob turn on Ex1: the board restarts (it reads its knob once)",
+    "real-time factor: Ex6 classroom under a steady error flood from outside, 125 kbit/s",
+    "real-time factor: Ex6 classroom under a varied error flood from outside, 125 kbit/s",
+    "memory of a trace event: the classroom's frames",
+    "memory of a trace event: a steady error flood",
+    "memory of a trace event: a varied error flood",
+    "linked classroom, an in-process virtual peer at full rate for 3 s: most frames python-can's queue held for the "
+    "link",
+    "linked classroom, an in-process virtual peer at full rate for 3 s: resident memory growth after the first 0.6 s",
+    "linked classroom, an in-process virtual peer at full rate for 3 s: most it fell behind real time",
 )
 
 

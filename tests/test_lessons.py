@@ -27,6 +27,7 @@ import matplotlib.pyplot as plt
 import nbformat
 import pytest
 
+from appsim import output
 from appsim.board import usbcdc
 from appsim.board.app023 import APP023
 from appsim.bus.bitlevel import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
@@ -250,10 +251,20 @@ def test_the_physical_layer_numbers_are_the_sources_and_the_picture_draws_them()
 
 # ---------------------------------------------------------------- every number in the prose is the kit's
 
-QUANTITY = re.compile(r"(?<![\w.])\d+(?:\.\d+)?\s?(?:µs|ms|ns|s|bits?|TQ|%|kbit/s|Mbit/s|V|Ω|ohm|m|cm/ns|bytes|baud)"
+QUANTITY = re.compile(r"(?<![\w.,])(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?\s?"
+                      r"(?:µs|ms|ns|s|bits?|TQ|%|kbit/s|Mbit/s|V|Ω|ohm|m|cm/ns|bytes|baud)"
                       r"(?![\w/])|\b(?:TEC|REC) \d+|\bBRGCON[123] (?:=|is) 0x[0-9A-F]{2}")
-"""A number with a unit (ranges such as 1..8 TQ are rules, not results, and are not matched), TEC/REC n, or a
-BRGCON value."""
+"""A number with a unit (thousands read whole, 19,231 baud; ranges such as 1..8 TQ are rules, not results, and are
+not matched), TEC/REC n, or a BRGCON value."""
+
+
+def usart_baud(spbrg: int, brgh: bool) -> float:
+    """The baud rate a real (simulated) EUSART runs at with this SPBRG and BRGH (BRG16 = 0)."""
+    mcu = PIC18F8680(Simulator())
+    mcu.write_name("TXSTA", 0x04 if brgh else 0x00)
+    mcu.write_name("SPBRG", spbrg)
+    return mcu.usart.baud
+
 
 CLASSROOM = BitTiming(sjw=4, brp=10, seg1ph=8, seg2ph=4, prseg=3)       # CANInitialize(4, 10, 8, 4, 3, ...)
 WRONG_BRP = BitTiming(sjw=4, brp=5, seg1ph=8, seg2ph=4, prseg=3)        # 01_bit_timing's wrong node
@@ -548,6 +559,7 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "8 µs": lambda ns: micro(Fraction(1, CLASSROOM.bit_rate(FOSC_HZ))),
         "0.7 ms": lambda ns: milli(frame_time(WORKSHOP_FRAME, 125_000), 1),
         "3 bits": lambda ns: f"{INTERMISSION_BITS} bits",
+        "60 s": lambda ns: f"{output.FIFO_WAIT_S:g} s",
     },
     "monitor-format.md": {
         "64 bytes": same(lambda ns: f"{usbcdc.OUT_ENDPOINT_BYTES} bytes",
@@ -565,6 +577,8 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "32 bytes": lambda ns: f"{load_firmware(solution('demo1')).RECEIVED_BYTES} bytes",
         "1 ms": lambda ns: milli(Fraction(FIFO_DEPTH * demo1_lines()['usart'].frame_ps(), PS_PER_SECOND)),
         **{text: PER_SOURCE_DEMO1[text] for text in ("55 bytes", "29 ms", "10 bits")},
+        "19,231 baud": lambda ns: f"{usart_baud(129, True):,.0f} baud",
+        "0.16 %": lambda ns: f"{(usart_baud(129, True) / PC_BAUD - 1) * 100:.2f} %",
     },
 }
 

@@ -14,6 +14,7 @@ from collections import Counter
 from typing import Literal
 
 from appsim.board.app023 import APP023
+from appsim.chip.usart import sample_frame
 from appsim.sim import PS_PER_SECOND, Timer
 
 if sys.platform != "win32":                  # Windows has no pseudo-terminals: it takes the socket transport
@@ -26,6 +27,8 @@ OUT_ENDPOINT_BYTES = 64        # the PIC18F2550's CDC data OUT endpoint: the PC'
 SOCKET_RECEIVE_BYTES = 4096    # what the kernel holds for the bridge of the socket program's writes
 CR, LF = 0x0D, 0x0A
 LINE_ENDS = b"\r\n\a"          # CR LF end a monitor line; CR or BELL end an SLCAN answer
+LONGEST_LINE = 256             # bytes: the monitor's lines are under 70; more without an end (a wrong baud rate's
+                               # garbage) is not a line
 ANSWER_PS = PS_PER_SECOND // 20  # 50 ms: the board answers within this, and pauses no longer inside a line
 LINGER_POLL_S = 0.05           # after the run: how often `linger` looks whether the program has closed the port
 
@@ -33,6 +36,7 @@ LINGER_POLL_S = 0.05           # after the run: how often `linger` looks whether
 NOBODY = "no program had the port open"
 LEFT = "meant for a program that had left"
 FULL = "the program was not reading and its buffer was full"
+NO_START_BIT = "the bridge's UART saw no start bit where it looked (the board's USART runs at another baud rate)"
 # Why bytes from the PC never reached the board.
 NOT_TAKEN = "the board's USART did not take them (receiver off, or OERR: the firmware did not read RCREG in time)"
 UNPLUGGED = "still in the bridge when it was unplugged"
@@ -53,7 +57,8 @@ class UsbCdc:
     OERR because the firmware did not read RCREG in time) are lost, and `lost_to_board` counts them.
 
     One program at a time. It gets whole lines from the board, from the first line start after it came
-    (a line is over at CR, LF or BELL, or when the board has been silent for `ANSWER_PS`); when its port
+    (a line is over at CR, LF or BELL, when the board has been silent for `ANSWER_PS`, or after `LONGEST_LINE` bytes);
+    when its port
     is full, the rest of the line is dropped too. When it leaves, what it wrote still reaches the board
     (as a closing serial port drains), what it did not read is dropped, and the next program is served
     from the first line the board starts 50 ms (`ANSWER_PS`) after the last of those bytes: the answers
@@ -81,6 +86,7 @@ class UsbCdc:
         self.to_pc = 0                         # bytes from the board that a PC program got
         self.why_lost: Counter[str] = Counter()  # bytes from the board that no program got, by reason
         self.to_board = 0                      # bytes from the PC the bridge took
+        self.misread: Counter[int] = Counter()  # bytes from the board its UART misread, by the board's baud rate
         self.closed = False
         self._unsent = 0                       # bytes from the PC still in the OUT endpoint when it was unplugged
         self._out = bytearray()                # the OUT endpoint
@@ -90,6 +96,7 @@ class UsbCdc:
         self._skipping: str | None = None      # why the rest of the board's line goes to no program
         self._last = LF                        # the board's last byte: plugged in, it is taken to be between lines
         self._last_ps = self.sim.now           # and when it came
+        self._line_bytes = 0                   # bytes since the last line end
         self._handover_ps = 0                  # no program is served before this (answers to the last one)
         self.end.listeners.append(self._from_board)
 
@@ -106,10 +113,16 @@ class UsbCdc:
     # ------------------------------------------------------------------ board -> PC
     def _between_lines(self, time_ps: int) -> bool:
         """Whether the board's last line is over: it ended, or the board has been silent for ANSWER_PS."""
-        return self._last in LINE_ENDS or time_ps >= self._last_ps + ANSWER_PS
+        return (self._last in LINE_ENDS or time_ps >= self._last_ps + ANSWER_PS
+                or self._line_bytes >= LONGEST_LINE)
 
-    def _from_board(self, byte: int, time_ps: int) -> None:
+    def _from_board(self, sent: int, time_ps: int) -> None:
+        byte = self._as_read(sent)
+        if byte is None:
+            self._lose(NO_START_BIT, time_ps)
+            return
         starts_line = self._between_lines(time_ps) and not (self._last == CR and byte == LF)
+        self._line_bytes = 0 if starts_line else self._line_bytes + 1
         self._last, self._last_ps = byte, time_ps
         if starts_line:
             if not (self._serving or self._draining):
@@ -129,6 +142,18 @@ class UsbCdc:
                 self._serving, self._draining = False, True
             self._skipping = why               # the rest of the line is lost too: a program gets whole lines only
         self._lose(why, time_ps)
+
+    def _as_read(self, byte: int) -> int | None:
+        """The byte as the bridge's UART (19200 baud) reads the board's frame at the USART's own baud rate, sampling
+        each bit in its middle (None: no start bit where it looked); a misread one is counted."""
+        usart = self.end.usart
+        sent_bit_ps, bit_ps = usart.bit_ps(), self.end.bit_ps()
+        if sent_bit_ps == bit_ps:
+            return byte
+        sampled = sample_frame(byte, sent_bit_ps, bit_ps, 8)
+        if sampled is None or sampled[0] != byte or not sampled[2]:
+            self.misread[round(usart.baud)] += 1
+        return None if sampled is None else sampled[0]
 
     def _lose(self, why: str, time_ps: int) -> None:
         if not self.why_lost[why]:
@@ -210,9 +235,11 @@ class UsbCdc:
     def report(self) -> str:
         """What crossed the bridge each way, and what was lost on the way, with why."""
         to_board = {NOT_TAKEN: self.end.lost, UNPLUGGED: self._unsent}
+        misread = "".join(f"\n  {count:,} bytes from the board came at {baud:,} baud: the bridge's UART at "
+                          f"{self.end.baud:,} baud misread them" for baud, count in self.misread.items())
         return (f"USB-CDC port {self.url}\n"
                 f"  board -> PC: {_count(self.to_pc + self.lost_to_pc, self.why_lost)}\n"
-                f"  PC -> board: {_count(self.to_board, to_board)}")
+                f"  PC -> board: {_count(self.to_board, to_board)}{misread}")
 
     def close(self) -> None:
         """Unplug the bridge: the port or socket goes away; the board's bytes go nowhere."""

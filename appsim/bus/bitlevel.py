@@ -7,11 +7,16 @@ tolerance loses the bit grid within a few bits whatever it does).
 """
 from __future__ import annotations
 
+import dataclasses
 import heapq
 from dataclasses import dataclass, field
+from functools import lru_cache
+from itertools import chain, count, zip_longest
+from operator import attrgetter
 
-from appsim.can.bits import crc15, encode_annotated
-from appsim.can.frame import CanFrame
+from appsim.can.bits import INTERMISSION_BITS, TAIL_BITS, WireBit, crc15, encode_annotated, max_frame_bits
+from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
+from appsim.errors import InjectionError
 
 ERROR_FLAG_BITS = 6                 # an error or overload flag; a passive one ends after 6 equal bits
 ERROR_DELIMITER_BITS = 8
@@ -22,6 +27,19 @@ _ARBITRATION_FIELDS = (frozenset(("ID", "RTR")), frozenset(("ID", "SRR", "IDE", 
 _MAX_BUS_BITS = 2000        # no frame and error frames last this long; a guard against a run that never settles
 
 
+# Where an injected error can be at all (bits from SOF = 0): a stuff error is the sixth equal bit in a row, from SOF
+# and the first five identifier bits (bit 5) to the end of the longest frame's CRC sequence; a form error is a
+# fixed-form bit read dominant, the CRC delimiter of the shortest frame at the earliest; a frame and its error frames
+# last at most as long as the longest frame, an error in its last bit, two error flags one upon the other, the error
+# delimiter and the intermission.
+FIRST_STUFF_ERROR_BIT = 5
+LAST_STUFF_ERROR_BIT = max_frame_bits(8, extended=True) - TAIL_BITS - 1
+FIRST_FORM_ERROR_BIT = 34
+LAST_BIT = max_frame_bits(8, extended=True) + 2 * ERROR_FLAG_BITS + ERROR_DELIMITER_BITS + INTERMISSION_BITS - 1
+LONGEST_DOMINANT_BITS = 1000        # a transceiver held dominant longer holds the bus for everyone; the engine's guard
+AT_THEIR_PLACE = ("crc", "ack")     # injected where the protocol finds them, at the ACK delimiter and the ACK slot
+
+
 @dataclass(frozen=True, slots=True)
 class Injection:
     """Make `node` see an error of `kind` at bit `bit` (SOF = 0, counted in its own bits, stuff bits included) of
@@ -29,10 +47,10 @@ class Injection:
 
     bit: it samples the opposite of the wire at `bit` (a transmitter: a bit error there, also inside its own active
     error flag; a receiver: whatever that wrong bit leads to). stuff: it sees a stuff error at `bit`. crc: its CRC
-    check fails (flag after the ACK delimiter; `bit` unused). form: it samples dominant at `bit` (a fixed-form bit:
-    CRC or ACK delimiter, EOF, error delimiter). ack: a transmitter sees the ACK slot recessive (`bit` unused).
+    check fails (flag after the ACK delimiter; `bit` 0). form: it samples dominant at `bit` (a fixed-form bit:
+    CRC or ACK delimiter, EOF, error delimiter). ack: a transmitter sees the ACK slot recessive (`bit` 0).
     dominant: it drives the wire dominant for `length` bits from `bit`, whatever it is doing (a faulty transceiver);
-    the other nodes see what follows."""
+    the other nodes see what follows. One that could never happen is refused (`InjectionError`, with why)."""
 
     node: str
     kind: str
@@ -42,10 +60,52 @@ class Injection:
     length: int = 1
 
     def __post_init__(self) -> None:
-        if self.kind not in ERROR_KINDS:
-            raise ValueError(f"no error kind {self.kind!r}: the kinds are {', '.join(ERROR_KINDS)}")
-        if self.bit < 0 or self.frames < 1:
-            raise ValueError("an injection needs a bit >= 0 (SOF is bit 0) and frames >= 1")
+        why = self._impossible()
+        if why:
+            raise InjectionError(why)
+
+    def _impossible(self) -> str:
+        """Why this error could never happen on a CAN bus, "" if it can."""
+        kind, bit = self.kind, self.bit
+        if kind not in ERROR_KINDS:
+            return f"no error kind {kind!r}: the kinds are {', '.join(ERROR_KINDS)}"
+        if not _whole(bit) or not _whole(self.frames) or not _whole(self.length):
+            return "an injection's bit, frames and length are whole numbers"
+        if self.can_id is not None and not (_whole(self.can_id) and 0 <= self.can_id <= EXTENDED_ID_MAX):
+            shown = f"{'-' * (self.can_id < 0)}0x{abs(self.can_id):X}" if _whole(self.can_id) else repr(self.can_id)
+            return (f"no frame has identifier {shown}: identifiers are 0..0x{STANDARD_ID_MAX:X} (11 bits) or, "
+                    f"extended, 0..0x{EXTENDED_ID_MAX:X} (29 bits)")
+        if self.frames < 1:
+            return f"an injection fires in 1 frame or more, not {self.frames}"
+        if kind in AT_THEIR_PLACE:
+            if bit:
+                place = "a receiver's ACK delimiter" if kind == "crc" else "a transmitter's ACK slot"
+                return (f"{'an' if kind == 'ack' else 'a'} {_LABEL[kind]} is seen at {place}, whatever the frame's "
+                        f"length: give bit 0, not {bit}")
+            return ""
+        if bit < 0:
+            return f"bits are counted from SOF = 0: bit {bit} comes before any frame"
+        if bit > LAST_BIT:
+            return (f"bit {bit} is past the end of any frame and the error frames that can follow it: bits are counted "
+                    f"from SOF = 0 to {LAST_BIT} at most (the longest frame is {LAST_STUFF_ERROR_BIT + 1 + TAIL_BITS} "
+                    "bits)")
+        if kind == "stuff" and not FIRST_STUFF_ERROR_BIT <= bit <= LAST_STUFF_ERROR_BIT:
+            return (f"a stuff error is the sixth equal bit in a row between SOF and the end of the CRC sequence: bits "
+                    f"{FIRST_STUFF_ERROR_BIT}..{LAST_STUFF_ERROR_BIT}, not {bit} (kind 'bit' flips any bit)")
+        if kind == "form" and bit < FIRST_FORM_ERROR_BIT:
+            return (f"a form error is a dominant bit where a frame has a fixed recessive one, the CRC delimiter of the "
+                    f"shortest frame (bit {FIRST_FORM_ERROR_BIT}) at the earliest, not bit {bit} (kind 'bit' flips any "
+                    "bit)")
+        if kind == "dominant" and not 1 <= self.length <= LONGEST_DOMINANT_BITS:
+            return f"a dominant injection lasts 1..{LONGEST_DOMINANT_BITS} bits, not {self.length}"
+        if kind == "dominant" and bit < 1:
+            return ("a node drives in each bit what it decided at the bit before, and SOF (bit 0) is dominant anyway: "
+                    "a dominant injection starts at bit 1 at the earliest")
+        return ""
+
+
+def _whole(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,6 +147,8 @@ class Outcome:
     errors: list[str] = field(default_factory=list)    # "stuff error at bit 23: ...", in the order it saw them
     assembled: Assembled | None = None                 # for error-recognition mode, at its first error
     flag_at_ps: int | None = None        # where its first error flag started
+    fired: list[Injection] = field(default_factory=list)   # its injections that took effect (see `_Node._fire`)
+    sampled: int = 0                     # the bits it sampled, from SOF until the bus was idle
 
 
 @dataclass(slots=True)
@@ -104,22 +166,55 @@ class Run:
 
 # Phases of a node's protocol state machine.
 _FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE = range(6)
+_SAMPLED = ("bit", "form")          # change what the node samples at their bit
 
 
-class _Node:
-    """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
+@lru_cache(maxsize=1024)
+def _transmitted(frame: CanFrame) -> tuple[WireBit, ...]:
+    return tuple(encode_annotated(frame))
+
+
+class _Clocked:
+    """A station's bit clock, hard-synchronised on SOF, and the levels it drives, bit by bit from SOF."""
 
     def __init__(self, station: Station, sof_ps: int):
         self.station = station
-        self.out = Outcome(station.name)
         self.t0 = sof_ps
+        self.levels: list[int] = []
+        self.k = 0                            # the bit being sampled, in its own bits from SOF
+
+    def sample_time(self) -> int:
+        return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
+
+    def bit_end(self) -> int:
+        return self.t0 + (self.k + 1) * self.station.bit_ps
+
+    def level_at(self, time: int) -> int:
+        k = (time - self.t0) // self.station.bit_ps
+        return self.levels[k] if 0 <= k < len(self.levels) else 1
+
+
+class _Node(_Clocked):
+    """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
+
+    def __init__(self, station: Station, sof_ps: int):
+        super().__init__(station, sof_ps)
+        self.out = Outcome(station.name)
+        self.followers: list[_Follower] = []
         self.tec, self.rec = station.tec, station.rec
-        self.levels: list[int] = []           # what it drives, bit by bit from SOF
-        self.tx = encode_annotated(station.frame) if station.frame is not None else []
+        self.tx = _transmitted(station.frame) if station.frame is not None else ()
+        # its injections, by (kind, bit) (bit None: `AT_THEIR_PLACE`), in the order given; "dominant" ones by themselves
+        self.injected: dict[tuple[str, int | None], list[Injection]] = {}
+        for injection in station.injections:
+            if injection.kind != "dominant":
+                kind = "sampled" if injection.kind in _SAMPLED else injection.kind
+                where = None if injection.kind in AT_THEIR_PLACE else injection.bit
+                self.injected.setdefault((kind, where), []).append(injection)
+        self.dominant = tuple(i for i in station.injections if i.kind == "dominant")
+        self.armed = bool(station.injections)
         self.arbitration = _ARBITRATION_FIELDS[station.frame is not None and station.frame.extended]
         self.transmitting = bool(self.tx)           # its role in the frame: stays set through its error frames
         self.levels.append(0 if self.transmitting else 1)
-        self.k = 0                            # the bit being sampled, in its own bits from SOF
         self.phase = _FRAME
         # the frame as received: destuffing and the fields read so far
         self.last, self.run = -1, 0
@@ -140,17 +235,6 @@ class _Node:
         self.idle_ps = 0
         self.end_ps = 0
 
-    # ----------------------------------------------------------------- clock
-    def sample_time(self) -> int:
-        return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
-
-    def bit_end(self) -> int:
-        return self.t0 + (self.k + 1) * self.station.bit_ps
-
-    def level_at(self, time: int) -> int:
-        k = (time - self.t0) // self.station.bit_ps
-        return self.levels[k] if 0 <= k < len(self.levels) else 1
-
     @property
     def passive(self) -> bool:
         return self.station.listen_only or self.tec > 127 or self.rec > 127
@@ -158,26 +242,32 @@ class _Node:
     # ----------------------------------------------------------------- one sample
     def sample(self, wire: int) -> int:
         """Read the wire at this bit's sample point; return what to drive in the next bit."""
-        for injection in self.station.injections:
-            if injection.bit == self.k and injection.kind in ("bit", "form"):
-                wire = 1 - wire if injection.kind == "bit" else 0
+        for injection in self.injected.get(("sampled", self.k), ()) if self.injected else ():
+            read = 1 - wire if injection.kind == "bit" else 0
+            if read != wire:
+                self._fire(injection)
+            wire = read
         level = self._protocol_bit(wire)
-        for injection in self.station.injections:
-            if injection.kind == "dominant" and injection.bit <= self.k + 1 < injection.bit + injection.length:
+        for injection in self.dominant:
+            if injection.bit <= self.k + 1 < injection.bit + injection.length:
+                self._fire(injection)
                 level = 0
         return level
 
+    def step(self, wire: int) -> None:
+        """Sample bit k, decide what to drive in the next, move on to it."""
+        self.levels.append(self.sample(wire) if self.armed else _BY_PHASE[self.phase](self, wire))
+        self.k += 1
+
+    def _fire(self, injection: Injection) -> None:
+        """An injection took effect: it changed what this node read or drove, or made it see its error."""
+        if not any(fired is injection for fired in self.out.fired):
+            self.out.fired.append(injection)
+
     def _protocol_bit(self, wire: int) -> int:
-        if self.phase == _FRAME:
-            return self._frame_bit(wire)
-        if self.phase == _FLAG:
-            return self._flag_bit(wire)
-        if self.phase == _AFTER_FLAG:
-            return self._after_flag_bit(wire)
-        if self.phase == _DELIMITER:
-            return self._delimiter_bit(wire)
-        if self.phase == _INTERMISSION:
-            return self._intermission_bit(wire)
+        return _BY_PHASE[self.phase](self, wire)
+
+    def _idle_bit(self, wire: int) -> int:
         if wire == 0:          # idle, and a dominant bit: someone's flag or frame, read as a new SOF
             self._restart_frame()
             return self._frame_bit(wire)
@@ -213,7 +303,11 @@ class _Node:
         return self._tail_bit(wire)
 
     def _injected(self, kind: str, bit: int | None = None) -> bool:
-        return any(i.kind == kind and bit in (None, i.bit) for i in self.station.injections)
+        """Whether an injection of `kind` (at `bit`) makes this node see its error here; it takes effect if so."""
+        hits = self.injected.get((kind, bit)) if self.injected else None
+        for injection in hits or ():
+            self._fire(injection)
+        return bool(hits)
 
     def _next_level(self) -> int:
         """What this node drives in the next frame bit (a receiver: recessive, or dominant in the ACK slot)."""
@@ -225,7 +319,7 @@ class _Node:
         return 1
 
     def _stuffed_bit(self, wire: int) -> int:
-        if self._injected("stuff", self.k):
+        if self.armed and self._injected("stuff", self.k):
             return self._error("stuff", "six equal bits (injected)")
         if self.run == 5:                 # a stuff bit
             if wire == self.last:
@@ -240,7 +334,7 @@ class _Node:
         self.last = wire
         self.bits.append(wire)
         count = len(self.bits)
-        if self.need is None and count == (39 if self.bits[13:14] == [1] else 19):   # the DLC is in
+        if self.need is None and count == (39 if count > 13 and self.bits[13] == 1 else 19):   # the DLC is in
             dlc = _value(self.bits[count - 4:count])
             remote = self.bits[12] if count == 19 else self.bits[32]
             self.need = count + (0 if remote else 8 * min(dlc, 8)) + 15
@@ -393,6 +487,10 @@ class _Node:
         return 1
 
 
+_BY_PHASE = (_Node._frame_bit, _Node._flag_bit, _Node._after_flag_bit, _Node._delimiter_bit, _Node._intermission_bit,
+             _Node._idle_bit)               # what a node does with the bit it samples, by its `phase`
+
+
 def _value(bits: list[int]) -> int:
     value = 0
     for bit in bits:
@@ -400,39 +498,227 @@ def _value(bits: list[int]) -> int:
     return value
 
 
-def run_frame(sof_ps: int, stations: list[Station]) -> Run:
-    """Every station hard-synchronised on the SOF at `sof_ps`, bit by bit until all are idle again."""
-    nodes = [_Node(station, sof_ps) for station in stations]
-    queue = [(node.sample_time(), index) for index, node in enumerate(nodes)]
-    heapq.heapify(queue)
-    first_error_ps: int | None = None
-    first_error = first_error_by = ""
-    limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
-    while queue:
-        time, index = heapq.heappop(queue)
-        if all(n.phase == _IDLE for n in nodes):
-            break
-        if time > limit:
+class _Follower(_Clocked):
+    """A receiver whose station is its `leader`'s but for the name (same mode, clock and counters, nothing to send, no
+    injection): it reads what the leader reads, so it does what the leader does, and the leader's engine decides for
+    both. It samples after the leader, in the same bit; what it drove is the leader's levels (`levels` at the end)."""
+
+    def __init__(self, station: Station, sof_ps: int, leader: _Node):
+        super().__init__(station, sof_ps)
+        self.leader = leader
+        self.phase = _FRAME
+        leader.followers.append(self)
+
+    def step(self, wire: int) -> None:
+        """Sample bit k as the leader did, and move on to the next."""
+        self.phase = self.leader.phase
+        self.k += 1
+
+    def outcome(self) -> Outcome:
+        self.levels = self.leader.levels[:self.k + 1]
+        outcome = Outcome(*_OUTCOME(self.leader.out))
+        outcome.name, outcome.errors, outcome.fired = self.station.name, list(outcome.errors), []
+        outcome.sampled = self.k
+        return outcome
+
+
+_Engine = _Node | _Follower
+_BEHAVIOUR = attrgetter(*(f.name for f in dataclasses.fields(Station) if f.name != "name"))    # all it does hangs on
+_OUTCOME = attrgetter(*(f.name for f in dataclasses.fields(Outcome)))
+
+
+def _engines(stations: list[Station], sof_ps: int) -> list[_Engine]:
+    """A protocol engine per station, but one for receivers alike (`_Follower`)."""
+    engines: list[_Engine] = []
+    leaders: dict[tuple[object, ...], _Node] = {}
+    for station in stations:
+        alike = _BEHAVIOUR(station) if station.frame is None else None
+        leader = leaders.get(alike) if alike is not None else None
+        if leader is not None:
+            engines.append(_Follower(station, sof_ps, leader))
+            continue
+        node = _Node(station, sof_ps)
+        if alike is not None:
+            leaders[alike] = node
+        engines.append(node)
+    return engines
+
+
+def _level(time: int, leaders: list[_Node]) -> int:
+    """The wire at `time`: dominant if any station drives dominant (a follower drives what its leader does)."""
+    for leader in leaders:
+        if leader.level_at(time) == 0:
+            return 0
+    return 1
+
+
+class _Run:
+    """One frame being run: its stations' engines, how many are not idle yet, and the first error flag."""
+
+    def __init__(self, sof_ps: int, stations: list[Station]):
+        self.sof_ps = sof_ps
+        self.engines = _engines(stations, sof_ps)
+        self.leaders = [engine for engine in self.engines if isinstance(engine, _Node)]
+        self.busy = len(self.engines)
+        self.limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
+        self.first_error_ps: int | None = None
+        self.first_error = self.first_error_by = ""
+
+    def sample(self, time: int, engine: _Engine, wire: int) -> bool:
+        """`engine` samples `wire` at `time`, unless every station is idle already: whether it did."""
+        if not self.busy:
+            return False
+        if time > self.limit:
             raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
-        node = nodes[index]
-        wire = min(other.level_at(time) for other in nodes)
-        errors = len(node.out.errors)
-        node.levels.append(node.sample(wire))
-        if first_error_ps is None and len(node.out.errors) > errors:
-            first_error_ps, first_error, first_error_by = node.out.flag_at_ps, node.out.errors[0], node.station.name
-        node.k += 1
-        heapq.heappush(queue, (node.sample_time(), index))
-    return Run({n.station.name: n.out for n in nodes}, _wire(nodes, sof_ps), first_error_ps, first_error,
-               first_error_by, max(n.end_ps for n in nodes), max(n.idle_ps for n in nodes))
+        idle = engine.phase == _IDLE
+        if self.first_error_ps is None and isinstance(engine, _Node):
+            self._step_watched(engine, wire)
+        else:
+            engine.step(wire)
+        self.busy += idle - (engine.phase == _IDLE)
+        return True
+
+    def _step_watched(self, node: _Node, wire: int) -> None:
+        """`node.step(wire)`, and the run's first error if it detects one (a follower's leader came first)."""
+        errors = node.out.errors
+        before = len(errors)
+        node.step(wire)
+        if len(errors) > before:
+            self.first_error_ps, self.first_error, self.first_error_by = node.out.flag_at_ps, errors[0], node.out.name
+
+    def in_lock_step(self) -> None:
+        """Every station has the bus's bit time: bit by bit, in each bit the stations in the order of their sample
+        points, all reading the one level the wire has in that bit.
+
+        A bit that starts with no station idle cannot end the run before its last sample (a station after the one
+        sampling would still be busy): there only the leaders run, and their followers catch up before the next bit
+        that starts with a station idle, where every station samples in turn."""
+        order = sorted(self.engines, key=lambda engine: engine.station.sample_ps)     # stable: at one time, as given
+        leading = [engine for engine in order if isinstance(engine, _Node)]
+        everyone, last_sample_ps = len(self.engines), order[-1].station.sample_ps
+        bit_ps, leaders, behind = self.engines[0].station.bit_ps, self.leaders, 0
+        for k in count():
+            wire = 1
+            for leader in leaders:
+                if leader.levels[k] == 0:
+                    wire = 0
+                    break
+            start = self.sof_ps + k * bit_ps
+            if self.busy == everyone:
+                if start + last_sample_ps > self.limit:
+                    raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
+                for leader in leading:
+                    if self.first_error_ps is None:
+                        self._step_watched(leader, wire)
+                    else:
+                        leader.step(wire)
+                    if leader.phase == _IDLE:
+                        self.busy -= 1 + len(leader.followers)
+                behind += 1
+                continue
+            for follower in (engine for engine in order if isinstance(engine, _Follower)):
+                follower.phase, follower.k = follower.leader.phase, follower.k + behind
+            behind = 0
+            for engine in order:
+                if not self.sample(start + engine.station.sample_ps, engine, wire):
+                    return
+
+    def by_sample_time(self) -> None:
+        """Stations at their own bit times: in the order of their sample times (at one time, in the order given),
+        each reading the wire as every station drives it then."""
+        engines = self.engines
+        queue = [(engine.sample_time(), index) for index, engine in enumerate(engines)]
+        heapq.heapify(queue)
+        wire_at, wire = -1, 1
+        while True:
+            time, index = heapq.heappop(queue)
+            if time != wire_at:                 # what a station sampled at `time` does not change the wire then
+                wire_at, wire = time, _level(time, self.leaders)
+            if not self.sample(time, engines[index], wire):
+                return
+            heapq.heappush(queue, (engines[index].sample_time(), index))
+
+    def result(self, one_clock: bool) -> Run:
+        outcomes = {}
+        for engine in self.engines:
+            if isinstance(engine, _Follower):
+                outcomes[engine.station.name] = engine.outcome()
+            else:
+                engine.out.sampled = engine.k
+                outcomes[engine.station.name] = engine.out
+        leaders = self.leaders
+        return Run(outcomes, _wire(leaders, self.sof_ps, one_clock), self.first_error_ps, self.first_error,
+                   self.first_error_by, max(n.end_ps for n in leaders), max(n.idle_ps for n in leaders))
 
 
-def _wire(nodes: list[_Node], sof_ps: int) -> list[tuple[int, int]]:
-    """The wire as (time, level) at each change: dominant wherever any node drives dominant."""
-    edges = sorted({node.t0 + k * node.station.bit_ps for node in nodes for k in range(len(node.levels) + 1)})
+def run_frame(sof_ps: int, stations: list[Station]) -> Run:
+    """Every station hard-synchronised on the SOF at `sof_ps`, bit by bit until all are idle again.
+
+    Stations sample in the order of their sample times (at one time, in the order given), each reading the wire as
+    all stations drive it then; stations at one bit rate do so in lock step, and a receiver alike another follows it:
+    two shortcuts that leave every bit as it was. What happens depends on the stations alone, its times on `sof_ps`:
+    a frame that comes again with the same stations (an error flood, where a failing frame is sent again and again)
+    is the run kept from last time, moved to its SOF (`RUNS_KEPT` of them)."""
+    key = tuple(map(_EVERYTHING, stations))
+    kept = _runs.get(key)
+    if kept is not None:
+        return _moved(*kept, sof_ps, stations)
+    run = _Run(sof_ps, stations)
+    one_clock = all(station.bit_ps == stations[0].bit_ps for station in stations)
+    if one_clock:
+        run.in_lock_step()
+    else:
+        run.by_sample_time()
+    result = run.result(one_clock)
+    if len(_runs) >= RUNS_KEPT:
+        del _runs[next(iter(_runs))]
+    _runs[key] = (result, sof_ps, stations)
+    return result
+
+
+RUNS_KEPT = 64
+_EVERYTHING = attrgetter(*(f.name for f in dataclasses.fields(Station)))
+_runs: dict[tuple[object, ...], tuple[Run, int, list[Station]]] = {}
+
+
+def _moved(run: Run, was_ps: int, before: list[Station], sof_ps: int, stations: list[Station]) -> Run:
+    """`run`, which started at `was_ps` with stations equal to these, as it happens from `sof_ps`: new outcomes, each
+    with these stations' own injections."""
+    shift = sof_ps - was_ps
+    injections = {now.name: (old.injections, now.injections) for old, now in zip(before, stations, strict=True)}
+    outcomes = {}
+    for name, outcome in run.outcomes.items():
+        moved = Outcome(*_OUTCOME(outcome))
+        moved.errors = list(outcome.errors)
+        if moved.lost_at_ps is not None:
+            moved.lost_at_ps += shift
+        if moved.flag_at_ps is not None:
+            moved.flag_at_ps += shift
+        old, now = injections[name]
+        moved.fired = [now[next(i for i, was in enumerate(old) if was is fired)] for fired in outcome.fired]
+        outcomes[name] = moved
+    return Run(outcomes, [(time + shift, level) for time, level in run.wire],
+               None if run.first_error_ps is None else run.first_error_ps + shift, run.first_error,
+               run.first_error_by, run.end_ps + shift, run.idle_ps + shift)
+
+
+def _wire(leaders: list[_Node], sof_ps: int, one_clock: bool) -> list[tuple[int, int]]:
+    """The wire as (time, level) at each change: dominant wherever any station drives dominant (followers drive what
+    their leaders do)."""
     changes = []
     level = 1
+    if one_clock:
+        bit_ps = leaders[0].station.bit_ps
+        levels = chain(map(min, zip_longest(*(leader.levels for leader in leaders), fillvalue=1)), (1,))
+        for k, now in enumerate(levels):
+            if now != level:
+                changes.append((sof_ps + k * bit_ps, now))
+                level = now
+        return changes
+    edges = sorted({leader.t0 + k * leader.station.bit_ps for leader in leaders
+                    for k in range(len(leader.levels) + 1)})
     for time in edges:
-        now = min(node.level_at(time) for node in nodes)
+        now = _level(time, leaders)
         if now != level:
             changes.append((time, now))
             level = now

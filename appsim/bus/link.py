@@ -11,6 +11,7 @@ import errno
 import logging
 import operator
 import os
+import queue
 import socket
 import struct
 import sys
@@ -27,8 +28,10 @@ from appsim.sim import PS_PER_SECOND
 log = logging.getLogger(__name__)
 
 QUEUE_FRAMES = 64           # frames from outside waiting for the simulated bus: 70 ms of 8-byte frames at 125 kbit/s
-READ_PER_POLL = 16          # frames read per poll at most, so a flood cannot stall the simulation (at 1 ms slices,
-                            # 16,000 frames/s: twice what a 1 Mbit/s bus carries); the rest waits in the kernel
+READ_PER_POLL = 16          # frames read per poll from a bus whose kernel counts what it drops, so a flood cannot stall
+                            # the simulation (at 1 ms slices, 16,000 frames/s: twice what a 1 Mbit/s bus carries)
+READ_BUDGET_S = 0.0003      # an in-process bus (python-can's virtual) is read further, for this much of each poll
+PYTHON_QUEUE_FRAMES = 1024  # frames a python-can queue the link reads may hold; the newest beyond are dropped, counted
 WARN_EVERY_PS = PS_PER_SECOND   # drops are reported as they happen, at most once a simulated second
 REOPEN_EVERY_S = 1.0        # an interface that is gone is opened again this often (wall seconds) until it is back
 KINDS_KEPT = 16             # reasons told apart in one tally; later new ones are counted together
@@ -129,6 +132,12 @@ def kernel_socket(outside: can.BusABC) -> socket.socket | None:
     return sock
 
 
+def python_queue(outside: can.BusABC) -> queue.Queue | None:
+    """The queue in which an in-process python-can bus (virtual) keeps what its peers sent until the link reads it."""
+    found = getattr(outside, "queue", None)
+    return found if isinstance(found, queue.Queue) else None
+
+
 def socket_drops(sock: socket.socket) -> int:
     """Packets the kernel dropped because the socket's receive buffer was full, since it was opened."""
     return SK_MEMINFO.unpack(sock.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, SK_MEMINFO.size))[-1]
@@ -158,6 +167,7 @@ class BusLink:
         self.sent = 0
         self.received = 0           # frames from outside (not counting udp_multicast's echoes of our own)
         self.dropped = 0            # ... that found the queue full
+        self.dropped_unread = 0     # frames python-can's queue held beyond PYTHON_QUEUE_FRAMES: dropped before reading
         self.echoes = 0
         self.reopened = 0
         self.rejected: Counter[str] = Counter()
@@ -196,6 +206,12 @@ class BusLink:
         self._kernel_socket = kernel_socket(self.outside)
         self._kernel_known = self._kernel_socket is not None
         self._kernel_base = self._kernel_count()
+        self._python_queue = python_queue(self.outside)
+
+    @property
+    def unread(self) -> int:
+        """Frames waiting in python-can's queue for the link to read them (0 if it has none the link can see)."""
+        return 0 if self._python_queue is None else self._python_queue.qsize()
 
     # ------------------------------------------------------------------ to and from the outside bus
     def frame_from_simulation(self, frame: CanFrame) -> None:
@@ -209,11 +225,15 @@ class BusLink:
             self._echoes[frame] += 1
 
     def poll(self) -> None:
-        """Bring in what arrived outside since the last poll (at most READ_PER_POLL frames): each frame
-        contends for the simulated bus now, or is counted as rejected or dropped. Never raises."""
+        """Bring in what arrived outside since the last poll: each frame contends for the simulated bus now, or is
+        counted as rejected or dropped. A bus whose kernel counts its drops (socketcan, udp_multicast) gives at most
+        READ_PER_POLL frames a poll, the rest wait there; any other is read for READ_BUDGET_S, and what python-can's
+        queue holds beyond PYTHON_QUEUE_FRAMES is dropped and counted, so memory stays flat. Never raises."""
         if self._reopen_at is not None and time.monotonic() >= self._reopen_at:
             self._reopen()
-        for _ in range(READ_PER_POLL):
+        until = None if self._kernel_known else time.perf_counter() + READ_BUDGET_S
+        read = 0
+        while read < READ_PER_POLL or (until is not None and time.perf_counter() < until):
             try:
                 message = self.outside.recv(timeout=0)
             except Exception as error:
@@ -222,7 +242,22 @@ class BusLink:
             if message is None:
                 break
             self._take(message)
+            read += 1
+        self._trim_python_queue()
         self._warn_of_drops()
+
+    def _trim_python_queue(self) -> None:
+        """Drop, and count, the newest frames python-can's queue holds beyond PYTHON_QUEUE_FRAMES (a peer in this
+        process sends faster than the link reads: as a kernel's socket buffer would, the queue stays bounded)."""
+        waiting = self._python_queue
+        if waiting is None or waiting.qsize() <= PYTHON_QUEUE_FRAMES:
+            return
+        with waiting.mutex:
+            excess = len(waiting.queue) - PYTHON_QUEUE_FRAMES
+            for _ in range(excess):
+                waiting.queue.pop()
+            waiting.not_full.notify_all()
+        self.dropped_unread += max(excess, 0)
 
     def _take(self, message: object) -> None:
         frame = frame_or_rejection(message)
@@ -278,11 +313,12 @@ class BusLink:
     def _warn_of_drops(self) -> None:
         """Frames lost to a full queue or a full kernel buffer are told as they happen: a line a second at most."""
         now = self.bus.sim.now
-        dropped, kernel = self.dropped, self.kernel_dropped or 0
+        dropped, kernel = self.dropped, (self.kernel_dropped or 0) + self.dropped_unread
         if (dropped, kernel) == self._lost_told or (any(self._lost_told) and now - self._told_at_ps < WARN_EVERY_PS):
             return
         log.warning("%s: outside sends faster than the simulated %d kbit/s bus carries: in the last %.1f s %d frames "
-                    "found the link's queue of %d frames full and %d the kernel's socket buffer (%d lost in all)",
+                    "found the link's queue of %d frames full and %d the kernel's socket buffer or python-can's "
+                    "queue (%d lost in all)",
                     self.name, self.bus.bit_rate // 1000, (now - self._told_at_ps) / PS_PER_SECOND,
                     dropped - self._lost_told[0], self.queue_frames, kernel - self._lost_told[1], dropped + kernel)
         self._lost_told, self._told_at_ps = (dropped, kernel), now
@@ -298,7 +334,14 @@ class BusLink:
             lines.append(f"  dropped {self.dropped}: the link's queue of {self.queue_frames} frames was full (outside "
                          f"sends faster than the simulated {self.bus.bit_rate // 1000} kbit/s bus carries)")
         kernel = self.kernel_dropped
-        if kernel is None:
+        if self._python_queue is not None:
+            if self.dropped_unread:
+                lines.append(f"  {self.dropped_unread} more were dropped before the link read them: python-can's "
+                             f"queue held {PYTHON_QUEUE_FRAMES} frames (a peer in this process sent faster than the "
+                             "link reads)")
+            if self.unread:
+                lines.append(f"  {self.unread} more are still in python-can's queue, not read")
+        elif kernel is None:
             lines.append("  (this outside bus does not say whether it dropped frames before the link read them)")
         elif kernel:
             lines.append(f"  the kernel dropped {kernel} more before the link could read them "

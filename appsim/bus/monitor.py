@@ -3,10 +3,9 @@ each node's error counters, and logs in python-can's file formats (candump .log,
 """
 from __future__ import annotations
 
-import errno
 import html
 import io
-import os
+import logging
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import suppress
 from pathlib import Path
@@ -16,8 +15,11 @@ import can
 
 from appsim.bus.wire import Bus, BusEvent
 from appsim.errors import OutputError
+from appsim.output import OutputFile, cannot_write
 from appsim.sim import PS_PER_SECOND
 from appsim.watchdog import ctrl_c_waits
+
+log = logging.getLogger(__name__)
 
 HEADER = f"{'time (s)':>11}  {'sender':<9} {'ID':>8}  {'type':<8} DLC  {'data':<23}  ACK by / error"
 # The formats a trace is logged in, by the file's suffix: python-can writes them and `can.LogReader` reads them back
@@ -25,6 +27,7 @@ HEADER = f"{'time (s)':>11}  {'sender':<9} {'ID':>8}  {'type':<8} DLC  {'data':<
 LOG_FORMATS: dict[str, type[can.io.generic.FileIOMessageWriter]] = {
     ".log": can.CanutilsLogWriter, ".asc": can.ASCWriter, ".blf": can.BLFWriter, ".csv": can.CSVWriter}
 LOG_KINDS = {".log": "candump -L format", ".asc": "Vector ASC", ".blf": "Vector BLF", ".csv": "python-can CSV"}
+BLF_SEEKS = "a .blf file's header is written last, at its start: give a file name, or log .log or .asc to a FIFO"
 
 
 def stamp(event: BusEvent) -> float:
@@ -178,89 +181,26 @@ def to_message(event: BusEvent, channel: str | int) -> can.Message:
                        data=frame.data, channel=channel)
 
 
-class WholeRecords(io.RawIOBase):
-    """The file under a python-can writer. What the writer writes waits here until `commit()` gives it to the operating
-    system in one go, so the file grows by whole records only; a write that fails (a full disk) cuts the file back to
-    its last whole record."""
-
-    def __init__(self, path: Path):
-        super().__init__()
-        self.name = str(path)
-        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
-        self._pending = bytearray()
-        self._position = 0              # the operating system's file position
-        self._whole = 0                 # the file's length after the last commit
-
-    def writable(self) -> bool:
-        return True
-
-    def seekable(self) -> bool:
-        return True
-
-    def write(self, data: bytes) -> int:    # type: ignore[override]
-        self._pending += data
-        return len(data)
-
-    def tell(self) -> int:
-        return self._position + len(self._pending)
-
-    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
-        self.commit()
-        self._position = os.lseek(self._fd, offset, whence)
-        return self._position
-
-    def commit(self) -> None:
-        """Write everything pending; if that fails, the file is cut back to what the last commit left, and it raises."""
-        pending, self._pending = bytes(self._pending), bytearray()
-        try:
-            done = 0
-            while done < len(pending):
-                done += os.write(self._fd, pending[done:])
-        except OSError:
-            os.ftruncate(self._fd, self._whole)
-            self._position = os.lseek(self._fd, self._whole, os.SEEK_SET)
-            raise
-        self._position += len(pending)
-        self._whole = max(self._whole, self._position)
-
-    def close(self) -> None:
-        if self.closed:
-            return
-        try:
-            self.commit()
-        finally:
-            os.close(self._fd)
-            super().close()
-
-
-def cannot_write(path: Path, error: OSError) -> OutputError:
-    """The error for a file the kit cannot write, in words that say what to do."""
-    reason = {errno.ENOENT: f"there is no directory {path.parent}: create it first, or give another path",
-              errno.ENOSPC: "the disk is full",
-              errno.EDQUOT: "the disk quota is used up",
-              errno.EROFS: "that file system is read-only: give a path where you can write",
-              errno.EACCES: "no permission to write there: give a path where you can write",
-              errno.EISDIR: "that is a directory: give a file name such as trace.log"}.get(error.errno or 0)
-    reason = reason or error.strerror or str(error)
-    return OutputError(f"cannot write {path}: {reason}")
-
-
 class EventFile:
-    """A file the bus's events go to as it carries them, each record handed to the operating system whole as it
-    happens: a run cut short (Ctrl-C, a crash, a kill) leaves a file readable to its last event, and a full disk ends it
-    at its last whole record with an `OutputError` that says so. Opening it is the check that the path can be written.
-    A format says what `kind` of file it is, how it `_record`s an event and how it `_finish`es."""
+    """A file the bus's events go to as it carries them, one record an event (`appsim.output`): a regular file gets each
+    whole as it happens, so a run cut short (Ctrl-C, a crash, a kill) leaves it readable to its last event, and a full
+    disk ends it at its last whole record with an `OutputError` that says so; a FIFO, a pipe or a terminal never
+    blocks the run, and what its reader did not get is counted (`losses`). Opening it is the check that the path can be
+    written. A format says what `kind` of file it is, how it `_record`s an event and how it `_finish`es."""
 
     kind = ""
+    needs_seek: str | None = None       # why the format cannot go to a FIFO, a pipe or a terminal
 
     def __init__(self, path: str | Path):
         self.path = Path(path)
-        self.written = 0                 # events in the file
         self._closed = False
-        try:
-            self._file = WholeRecords(self.path)
-        except OSError as error:
-            raise cannot_write(self.path, error) from None
+        self._told = False
+        self._file = OutputFile(self.path, needs_seek=self.needs_seek)
+
+    @property
+    def written(self) -> int:
+        """Events in the file (a stream: events its reader got)."""
+        return self._file.delivered
 
     def _record(self, event: BusEvent) -> None:
         raise NotImplementedError
@@ -272,26 +212,35 @@ class EventFile:
         """One more event in the file, given to the operating system before this returns; Ctrl-C waits for it."""
         with ctrl_c_waits():
             self._record(event)
-            self._commit()
-            self.written += 1
+            if not self._commit(counted=True) and not self._told:
+                self._told = True
+                closed = self._file.reader_closed_after is not None
+                log.warning("%s: %s: the frames from now on that it cannot take are counted, and the run goes on",
+                            self.path, "the program reading it closed it" if closed else "its reader fell behind")
 
-    def _commit(self) -> None:
+    def _commit(self, *, counted: bool = False) -> bool:
         try:
-            self._file.commit()
+            return self._file.commit(counted=counted)
         except OSError as error:
             self.close()
             holds = f". The log holds the run's first {self.written} frames, each one whole" if self.written else ""
             raise OutputError(f"{cannot_write(self.path, error)}{holds}") from None
 
-    def close(self) -> None:
-        """End the file as its format ends: after a failed write, as far as it goes."""
+    def losses(self) -> str:
+        """What a FIFO's, a pipe's or a terminal's reader did not get, in a few words ("" if nothing was lost)."""
+        return self._file.losses("frame")
+
+    def close(self, drain_until: float | None = None) -> None:
+        """End the file as its format ends (after a failed write, as far as it goes); a stream's reader gets until
+        `drain_until` to take what waits for it (`OutputFile.close`)."""
         if self._closed:
             return
         self._closed = True
-        with suppress(OSError):         # after a failed write: the file was cut back to its last whole record
+        with suppress(OSError, OutputError):        # after a failed write: cut back to its last whole record
             self._finish()
+            self._file.commit(counted=False)
         with suppress(OSError):
-            self._file.close()
+            self._file.close(drain_until)
 
     def __enter__(self) -> EventFile:
         return self
@@ -300,15 +249,26 @@ class EventFile:
         self.close()
 
 
+def stream_format(path: Path) -> str:
+    """The format of a log whose name has no suffix: candump's (what canplayer reads) for a FIFO or a device
+    (/dev/stdout's pipe, /dev/full), none for a file."""
+    try:
+        return "" if path.is_dir() or not path.exists() or path.is_file() else ".log"
+    except OSError:
+        return ""
+
+
 class TraceLog(EventFile):
-    """A CAN log in the format its file's suffix names (`LOG_FORMATS`), written by python-can's writer as the bus
-    carries each event: `can.LogReader` reads it back to its last frame, at the times the trace shows (`stamp`)."""
+    """A CAN log in the format its file's suffix names (`LOG_FORMATS`; a FIFO or a device: candump's), written by
+    python-can's writer as the bus carries each event: `can.LogReader` reads it back to its last frame, at the times
+    the trace shows (`stamp`)."""
 
     def __init__(self, path: str | Path, *, channel: str = "vcan0"):
-        suffix = Path(path).suffix.lower()
+        suffix = Path(path).suffix.lower() or stream_format(Path(path))
         if suffix not in LOG_FORMATS:
             raise OutputError(f"cannot write a CAN log named {Path(path).name}: use .log (candump), .asc (Vector), "
                               ".blf (Vector binary) or .csv")
+        self.needs_seek = BLF_SEEKS if suffix == ".blf" else None
         super().__init__(path)
         self.kind = LOG_KINDS[suffix]
         self._channel: str | int = channel if suffix == ".log" else 0    # python-can's first; Vector's channel 1

@@ -5,12 +5,16 @@ bring in what arrived from outside (CAN frames, serial bytes) at the simulated p
 """
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 
 from appsim.sim import PS_PER_SECOND, Simulator, ps
 
+log = logging.getLogger(__name__)
+
 SLICE_PS = PS_PER_SECOND // 1000        # 1 ms: the latency an outside frame or byte can see
+LATE_S = 0.2                            # a run this far behind the wall clock says so, once
 
 
 class WallClock:
@@ -24,6 +28,8 @@ class WallClock:
         self.slice_ps = slice_ps
         self.pollers: list[Callable[[], None]] = []
         self.max_lag_s = 0.0             # the most the simulation fell behind the wall clock
+        self.lag_s = 0.0                 # how far behind it is now
+        self.late_since_ps: int | None = None   # when it first fell more than LATE_S behind (simulated time)
 
     def add_poller(self, poll: Callable[[], None]) -> None:
         """`poll()` is called between slices, with the simulation stopped at its present (`sim.now`)."""
@@ -44,8 +50,23 @@ class WallClock:
             sim.run(until=target)
             due_wall = start_wall + (target - start_ps) / PS_PER_SECOND / self.speed
             ahead = due_wall - time.perf_counter()
+            self.lag_s = max(0.0, -ahead)
             if ahead > 0:
                 time.sleep(ahead)
             else:
-                self.max_lag_s = max(self.max_lag_s, -ahead)
+                self.max_lag_s = max(self.max_lag_s, self.lag_s)
+                if self.lag_s > LATE_S and self.late_since_ps is None:
+                    self.late_since_ps = sim.now
+                    log.warning("the simulation has fallen %.1f s behind real time at %.1f s (simulated): what it "
+                                "sends and receives outside is that late (the machine is too busy, or the bus carries "
+                                "more than it simulates in real time); the summary says how far it fell",
+                                self.lag_s, sim.now / PS_PER_SECOND)
         self.poll()
+
+    def lateness(self) -> str:
+        """How far the run fell behind real time, and since when, in a line ("" if it kept up within LATE_S)."""
+        if self.late_since_ps is None:
+            return ""
+        return (f"behind real time from {self.late_since_ps / PS_PER_SECOND:.1f} s (simulated) on: at most "
+                f"{self.max_lag_s:.1f} s behind, {self.lag_s:.1f} s at the end (frames to and from outside were that "
+                "late)")

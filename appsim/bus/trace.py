@@ -11,8 +11,10 @@ from typing import TYPE_CHECKING, overload
 if TYPE_CHECKING:
     from appsim.bus.wire import BusEvent
 
-# Events a trace keeps in memory (about 1.4 kB each): 2.5 simulated minutes of a classroom. A check's whole run
-# (1 s at most) fits many times over: at 125 kbit/s even a bus full of error frames carries under 4,000 a second.
+# Events a trace keeps in memory: 2.5 simulated minutes of a classroom, about 4 MB. An event holds about 200 bytes,
+# frames and error frames alike: the bus keeps each frame, outcome and wire that events repeat once (about 300 bytes
+# where no two are alike; `python -m bench` measures it). A check's whole run (1 s at most) fits many times over: at
+# 125 kbit/s even a bus full of error frames carries under 4,000 a second.
 TRACE_WINDOW = 20_000
 
 

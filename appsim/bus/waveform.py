@@ -20,7 +20,7 @@ def wire_levels(event: BusEvent, bit_ps: int) -> list[int]:
     cut it, the flags (dominant, or an error-passive node's recessive one), delimiters and any overload flags."""
     if not event.wire:
         return acked_bits(event.frame)
-    levels, changes, level = [], iter(event.wire), 1
+    levels, changes, level = [], iter(event.wire_changes()), 1
     change = next(changes, None)
     for bit in range(-(-(event.end_ps - event.start_ps) // bit_ps)):
         middle = event.start_ps + bit * bit_ps + bit_ps // 2
@@ -55,7 +55,6 @@ class WaveformLog(EventFile):
 
     def _finish(self) -> None:
         self._line.end(self.bus.sim.now // self._tick_ps)
-        self._file.commit()
 
 
 def write_waveform(bus: Bus, path: str | Path) -> Path:

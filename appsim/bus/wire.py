@@ -7,13 +7,16 @@ bit (`appsim.bus.bitlevel`), each node seeing the wire at its own sample points.
 from __future__ import annotations
 
 import functools
+from array import array
 from collections import deque
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Protocol, TypeVar
 
 from appsim.bus.bitlevel import Assembled, Injection, Outcome, Run, Station, run_frame
 from appsim.bus.controller import Controller, Mode, Node
+from appsim.bus.injections import Injections, Taking
 from appsim.bus.trace import TRACE_WINDOW, Trace
 from appsim.can.bits import INTERMISSION_BITS, frame_bits
 from appsim.can.bittiming import BitTiming, BitTimingError
@@ -24,6 +27,7 @@ SUSPEND_TRANSMISSION_BITS = 8
 BUS_IDLE_BITS = 11                  # mode changes, bus-off recovery: 11 consecutive recessive bits
 
 AnyNode = TypeVar("AnyNode", bound=Node)
+AnyPart = TypeVar("AnyPart", bound=Hashable)
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,13 +42,18 @@ class BusEvent:
     error: str = ""                  # "" for a good frame, else what went wrong, in CAN terms
     received: tuple[tuple[str, str], ...] = ()   # (node, what its acceptance logic did)
     # Not part of the event's repr: the bus bit (SOF = 0) where the first error flag starts (None: no flag), and for
-    # a frame run bit by bit, the wire as a logic analyser records it, (time, level) at each change from SOF.
+    # a frame run bit by bit, the wire as a logic analyser records it (`wire_changes`), kept small: the times (ps after
+    # `start_ps`, 8-byte integers) at which its level changes, recessive before SOF, dominant after the first ...
     flag_at_bit: int | None = field(default=None, repr=False, compare=False)
-    wire: tuple[tuple[int, int], ...] = field(default=(), repr=False, compare=False)
+    wire: bytes = field(default=b"", repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
         return not self.error
+
+    def wire_changes(self) -> list[tuple[int, int]]:
+        """The wire of a frame run bit by bit as (time in ps, level) at each change, from SOF (dominant)."""
+        return [(self.start_ps + offset, number % 2) for number, offset in enumerate(array("q", self.wire))]
 
     def __str__(self) -> str:
         time = f"{self.end_ps / PS_PER_SECOND:12.6f}"       # when receivers have it, as the trace and logs say
@@ -126,9 +135,7 @@ class _NodePort(_Port):
         return self.controller.rec
 
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
-        timing = self.controller.bit_timing()
-        bit_ps = bus_bit_ps if self.rate_ok else timing.bit_time_ps(self.controller.fosc)
-        return bit_ps, int(bit_ps * timing.sample_point)
+        return _clock(self.controller.bit_timing(), self.controller.fosc, bus_bit_ps, self.rate_ok)
 
     def pending(self) -> tuple[str, CanFrame] | None:
         buffer = self.controller.next_transmission()
@@ -154,6 +161,13 @@ class _NodePort(_Port):
 
     def activity(self) -> None:
         self.controller.bus_activity()
+
+
+@functools.lru_cache(maxsize=256)
+def _clock(timing: BitTiming, fosc: int, bus_bit_ps: int, rate_ok: bool) -> tuple[int, int]:
+    """A node's bit time and sample point in ps: the bus's bit time when its rate is within tolerance."""
+    bit_ps = bus_bit_ps if rate_ok else timing.bit_time_ps(fosc)
+    return bit_ps, int(bit_ps * timing.sample_point)
 
 
 class Outside(Protocol):
@@ -236,7 +250,8 @@ class Bus:
         self.busy_until = 0          # end of the intermission after the last frame or error frame
         self._arbitration: Timer | None = None
         self._idle_timer: Timer | None = None
-        self._injections: list[list] = []     # [Injection, frames still to fire in]
+        self.injections = Injections()
+        self._kept: dict[object, object] = {}   # what events repeat (frames, outcomes, wires), stored once
 
     # ------------------------------------------------------------------ nodes
     def attach(self, node: AnyNode) -> AnyNode:
@@ -334,8 +349,8 @@ class Bus:
         def done() -> None:
             controller.transmission_succeeded(buffer)       # the ACK comes from the module itself
             reception = controller.frame_received(frame)
-            self.loopback_trace.append(BusEvent(start, end, port.name, frame, (port.name,), "",
-                                                ((port.name, str(reception)),)))
+            self.loopback_trace.append(BusEvent(start, end, port.name, self._once(frame), self._once((port.name,)),
+                                                "", self._once(((port.name, str(reception)),))))
             self.sim.call_at(port.loop_busy_until, lambda: self._loopback(port))
 
         self.sim.call_at(end, done)
@@ -385,12 +400,15 @@ class Bus:
         same_id = [e for e in entries[1:] if e[0] == key]
         senders = {id(sender)} | {id(e[1]) for e in same_id}
         listeners = [p for p in self.ports if id(p) not in senders and self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
-        injections = self._injections_for(frame, [sender] + [e[1] for e in same_id] + listeners)
         ackers = tuple(p.name for p in listeners if p.mode == Mode.NORMAL)
         if isinstance(sender, _LinkPort):
             ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
-        if (injections or not ackers or any(e[3] != frame for e in same_id)
-                or not all(p.rate_ok for p in listeners) or not all(e[1].rate_ok for e in entries)):
+        plain = (bool(ackers) and all(e[3] == frame for e in same_id)
+                 and all(p.rate_ok for p in listeners) and all(e[1].rate_ok for e in entries))
+        injections = {} if not self.injections else self.injections.offer(
+            frame, [Taking(e[1].name, True, True) for e in entries]
+            + [Taking(p.name, p.mode == Mode.NORMAL, False) for p in listeners if id(p) not in senders], plain=plain)
+        if injections or not plain:
             self._bit_by_bit(now, entries, listeners, injections)
             return
         for loser_key, port, lost_buffer, _ in entries[1:]:
@@ -410,7 +428,8 @@ class Bus:
             for _, port, twin, _ in [(None, sender, buffer, None)] + same_id:
                 port.succeeded(twin)
                 self._after_transmit(port)
-            self.trace.append(BusEvent(start, end, sender.name, frame, ackers, "", tuple(received)))
+            self.trace.append(BusEvent(start, end, sender.name, self._once(frame), self._once(ackers), "",
+                                       self._once(tuple(received))))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_frame)
@@ -419,27 +438,15 @@ class Bus:
     def inject(self, node: str, kind: str, bit: int = 0, *, can_id: int | None = None, frames: int = 1,
                length: int = 1) -> Injection:
         """Make `node` see an error of `kind` ("bit", "stuff", "crc", "form", "ack") at bit `bit` (SOF = 0), or drive
-        `length` dominant bits from there ("dominant"), in the next `frames` frames it takes part in (with
-        identifier `can_id`, if given); see `appsim.bus.bitlevel.Injection`."""
+        `length` dominant bits from there ("dominant"), in the next `frames` frames it takes part in in Normal mode
+        (with identifier `can_id`, if given); see `appsim.bus.bitlevel.Injection`. Several for one node fire in turn,
+        in successive frames, unless each is at a later bit than the one before (docs/errors.md); one that could never
+        happen is refused (`InjectionError`), and `injections.not_fired()` says which never fired, and why."""
         if all(port.name != node for port in self.ports):
             raise KeyError(f"no node named {node!r} on this bus")
         injection = Injection(node, kind, bit, can_id, frames, length)
-        self._injections.append([injection, frames])
+        self.injections.arm(injection)
         return injection
-
-    def _injections_for(self, frame: CanFrame, ports: list[_Port]) -> dict[str, tuple[Injection, ...]]:
-        """The injections that fire in this frame, by node name."""
-        if not self._injections:
-            return {}
-        names = {port.name for port in ports}
-        firing: dict[str, tuple[Injection, ...]] = {}
-        for armed in self._injections:
-            injection = armed[0]
-            if injection.node in names and injection.can_id in (None, frame.can_id):
-                firing[injection.node] = firing.get(injection.node, ()) + (injection,)
-                armed[1] -= 1
-        self._injections = [armed for armed in self._injections if armed[1] > 0]
-        return firing
 
     def _bit_by_bit(self, start: int, entries: list[tuple[int, _Port, str, CanFrame]], listeners: list[_Port],
                     injections: dict[str, tuple[Injection, ...]]) -> None:
@@ -454,6 +461,7 @@ class Bus:
             stations.append(Station(port.name, port.mode == Mode.LISTEN_ONLY, bit_ps, sample_ps, port.tec, port.rec,
                                     frames.get(id(port)), injections.get(port.name, ())))
         run = run_frame(start, stations)
+        self.injections.fired(injections, run.outcomes)
         buffers = {id(e[1]): e[2] for e in entries}
         for _, port, buffer, _ in entries:
             lost_at = run.outcomes[port.name].lost_at_ps
@@ -482,11 +490,21 @@ class Bus:
                                            and run.outcomes[p.name].received is not None)
             if isinstance(sender, _LinkPort) and not error:
                 acked += (sender.name,)
-            self.trace.append(BusEvent(start, end, sender.name, frame, acked, error,
-                                       tuple(received), flag_at_bit, tuple(run.wire)))
+            self.trace.append(BusEvent(start, end, sender.name, self._once(frame), self._once(acked),
+                                       self._once(error), self._once(tuple(received)), flag_at_bit,
+                                       self._once(array("q", [time - start for time, _ in run.wire]).tobytes())))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_frame)
+
+    KEPT = 4096             # distinct parts of events `_once` keeps at most; then it starts again
+
+    def _once(self, part: AnyPart) -> AnyPart:
+        """`part` of an event (a frame, who ACKed, what each node did, the wire), as stored the first time it came:
+        a trace of 20,000 events holds each thing they repeat once."""
+        if len(self._kept) >= self.KEPT:
+            self._kept.clear()
+        return self._kept.setdefault(part, part)        # type: ignore[return-value]
 
     @staticmethod
     def _deliver(port: _Port, outcome: Outcome) -> str:

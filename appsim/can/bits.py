@@ -13,6 +13,7 @@ from appsim.errors import CrcError, FormError, StuffError, WireError
 
 __all__ = [
     "INTERMISSION_BITS",
+    "TAIL_BITS",
     "CrcError",
     "FormError",
     "StuffError",
@@ -32,10 +33,13 @@ __all__ = [
 INTERMISSION_BITS = 3
 """Recessive bits after EOF before the next frame may start (interframe space)."""
 
+TAIL_BITS = 10
+"""The bits after the stuffed region (SOF..CRC sequence): CRC delimiter, ACK slot, ACK delimiter, 7 EOF bits."""
+
 _CRC15_POLY = 0x4599
 _CRC_MASK = 0x7FFF
 # CRC delimiter, ACK slot as the transmitter sends it (recessive), ACK delimiter, EOF x7. Never stuffed.
-_TAIL = "1" * 10
+_TAIL = "1" * TAIL_BITS
 _TAIL_FIELDS = ("CRC delimiter", "ACK slot", "ACK delimiter") + ("EOF",) * 7
 _TO_LEVELS = bytes.maketrans(b"01", b"\x00\x01")
 

@@ -4,6 +4,7 @@ Checks the datasheet rules in plain sentences, lists the settings for a bit rate
 """
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
@@ -153,6 +154,7 @@ class BitTiming:
             raise BitTimingError("; ".join(problems))
 
     @classmethod
+    @functools.lru_cache(maxsize=256)       # the bus asks at every frame it runs bit by bit
     def from_registers(cls, brgcon1: int, brgcon2: int, brgcon3: int) -> BitTiming:
         """Decode BRGCON1..3 (each a byte); unimplemented BRGCON3 bits are ignored."""
         for name, value in (("BRGCON1", brgcon1), ("BRGCON2", brgcon2), ("BRGCON3", brgcon3)):

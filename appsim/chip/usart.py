@@ -264,7 +264,7 @@ class USART:
             end.lost += 1
             return
         ninth = bool(self._rcsta & _RX9)
-        sampled = _sample(byte, end.bit_ps(), self.bit_ps(), 9 if ninth else 8)
+        sampled = sample_frame(byte, end.bit_ps(), self.bit_ps(), 9 if ninth else 8)
         if sampled is None:                       # no start bit where the receiver looks for it
             end.lost += 1
             return
@@ -314,7 +314,7 @@ def _read_frame(level: Callable[[int], int], start: int, bit_ps: int, data_bits:
             level(start + bit_ps // 2 + (data_bits + 1) * bit_ps))
 
 
-def _sample(byte: int, sent_bit_ps: int, bit_ps: int, data_bits: int) -> tuple[int, int, int] | None:
+def sample_frame(byte: int, sent_bit_ps: int, bit_ps: int, data_bits: int) -> tuple[int, int, int] | None:
     """What a receiver at `bit_ps` reads from one 8N1 frame sent at `sent_bit_ps` (line idle after it).
 
     Returns (data bits as a number, the last data bit, the stop bit), or None if the start bit is not

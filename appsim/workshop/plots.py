@@ -121,12 +121,13 @@ def recorded_wire(event: BusEvent, bit_rate: int, ax: Axes | None = None) -> Fig
         raise ValueError("recorded_wire draws a frame that went through and was run bit by bit (its BusEvent.wire)")
     bit_ps = PS_PER_SECOND // bit_rate
     count = (event.end_ps - event.start_ps) // bit_ps
-    times = [time - event.start_ps for time, _ in event.wire]
+    changes = event.wire_changes()
+    times = [time - event.start_ps for time, _ in changes]
 
     def level(bit: int) -> int:
         middle = bit * bit_ps + bit_ps // 2
         index = max(i for i, time in enumerate(times) if time <= middle)
-        return event.wire[index][1]
+        return changes[index][1]
 
     frame = encode_annotated(event.frame)
     bits = [WireBit(level(i), bit.field, bit.stuff) for i, bit in enumerate(frame)]

@@ -22,6 +22,7 @@ SECONDS = 1.0                     # ~95 frames on the bus, ~34 lines through 192
                                   # frames are lost
 BITS_PER_BYTE = 10                # 8N1: a start bit, 8 data bits, a stop bit
 BAUD_TOLERANCE = 0.02             # a UART receiver copes with about 2 %: 129 gives 19231 (+0.16 %)
+BAUD_FIX = "With BRGH = 1, baud = Fosc / (16 x (SPBRG + 1)), so SPBRG = 129 at 40 MHz"
 FEWEST_LINES = 5
 TIME_SLACK_S = 0.035              # a line can wait for the one before it (the solution's 55 bytes: 29 ms)
 FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD)  (DATA|RTR )  DLC (\d+)"
@@ -77,8 +78,7 @@ def _baud(trial: Trial, received: bytearray) -> CheckResult:
     off = usart.baud / PC_BAUD - 1
     if abs(off) > BAUD_TOLERANCE:
         return CheckResult(BAUD, False, f"The USART sends at {usart.baud:.0f} baud ({off:+.0%}), but the PIC18F2550 "
-                                        "reads 19200 baud: the PC would see garbage. With BRGH = 1, baud = Fosc / "
-                                        "(16 x (SPBRG + 1)), so SPBRG = 129 at 40 MHz (TODO 1).")
+                                        f"reads 19200 baud: the PC would see garbage. {BAUD_FIX} (TODO 1).")
     return CheckResult(BAUD, True, f"{len(received)} bytes at {usart.baud:.0f} baud ({off:+.2%} from 19200).")
 
 

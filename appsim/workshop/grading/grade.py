@@ -8,6 +8,7 @@ from __future__ import annotations
 import base64
 import collections
 import dataclasses
+import functools
 import json
 import os
 import random
@@ -16,13 +17,14 @@ import signal
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, NamedTuple, TextIO
 
 from appsim import provenance
-from appsim.errors import GradeError, SandboxUnavailable
+from appsim.errors import GradeError, OutputError, SandboxUnavailable
+from appsim.output import cannot_write, check_distinct
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
 from appsim.workshop.grading.results import (
     Record,
@@ -60,10 +62,15 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
     if sys.platform == "win32":
         raise GradeError("appsim grade runs on Linux (or macOS with --trusted); on Windows, run it in WSL")
     results = results or default_results([Path(p) for p in paths])
+    gradescope = None if gradescope_path is None else Path(gradescope_path)
+    try:
+        check_distinct([("--json", results), ("--csv", csv_path), ("--gradescope", gradescope)],
+                       [("PATH", Path(p)) for p in paths])
+    except OutputError as error:
+        raise GradeError(str(error)) from None
     check_output(results, "the results file (--json)")
     if csv_path is not None:
         check_output(csv_path, "the gradebook (--csv)")
-    gradescope = None if gradescope_path is None else Path(gradescope_path)
     walls = None if trusted else _walls([*map(Path, paths), results, csv_path, gradescope])
     with _Pool(limits, walls, jobs) as pool:           # the workers load while the submissions are read
         submissions = find_submissions([Path(p) for p in paths])
@@ -89,7 +96,7 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
                     print(f"appsim grade: {printable(submission.name)}: {printable(submission.note)}", file=out)
             for number, record in enumerate(pool.grade(todo, seed, kit, commit, memory), start=1):
                 with _ctrl_c_held():                # a record kept is a record reported, and the other way round
-                    book.append(record)
+                    _writing(results, functools.partial(book.append, record))
                     previous[record["submission"]] = record
                     print(f"[{kept + number}/{len(submissions)}] {summary_line(record)}", file=out, flush=True)
             book.rewrite(previous.values())
@@ -97,9 +104,9 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
             book.close()
     records = [previous[s.name] for s in submissions]
     if csv_path is not None:
-        write_csv(csv_path, records)
+        _writing(csv_path, functools.partial(write_csv, csv_path, records))
     if gradescope is not None:
-        write_gradescope(gradescope, records, folder=gradescope_folder)
+        _writing(gradescope, functools.partial(write_gradescope, gradescope, records, folder=gradescope_folder))
     total, best = sum(r["score"] for r in records), sum(r["max_score"] for r in records)
     print(f"graded {len(todo)} submission(s)" + (f", kept {kept} already graded" if kept else "")
           + f": {total}/{best} points in all" + (f" {len(records)}" if kept else "")
@@ -108,6 +115,16 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
           + (f", gradebook {csv_path}" if csv_path else "")
           + (f", Gradescope {gradescope}{'/' if gradescope_folder else ''}" if gradescope else ""), file=out)
     return records
+
+
+def _writing(path: Path, write: Callable[[], None]) -> None:
+    """`write()`, a failure said in the workshop's words (a full disk: the grades so far are kept, the same command
+    again resumes)."""
+    try:
+        write()
+    except OSError as error:
+        raise GradeError(f"{cannot_write(path, error)}. The grades so far are kept in the results file: make room and "
+                         "run the same command again to resume") from None
 
 
 def _walls(secrets: Sequence[Path | None]) -> Isolation:
