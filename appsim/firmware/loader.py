@@ -1,4 +1,5 @@
-"""Loading a student's firmware file: plain Python with `from appsim.firmware import *` and a `main()`.
+"""Loading a student's firmware file: plain Python with `from appsim.firmware import *` and a `main()`, or C18's C
+(a `.c` file, translated by appsim.firmware.c18) with its `void main(void)`.
 
 Each load is a fresh module, so two boards running the same file never share their globals.
 """
@@ -12,7 +13,7 @@ import linecache
 import re
 import sys
 import traceback
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -22,21 +23,37 @@ from appsim.sim import TRACEBACK_FRAMES
 _loads = itertools.count()
 
 
-def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
-    """Load a firmware file as a new module; it must define `main()`.
+def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None,
+                  c_options: Sequence[str] = ()) -> ModuleType:
+    """Load a firmware file as a new module; it must define `main()` (a .c file: `void main(void)`).
 
     `defines` works like `-D MESSAGE_ID1=0x110` on the C18 command line: each name's top-level
-    assignment (`MESSAGE_ID1 = 0x100`) gets the given value instead, and constants computed from it
-    follow. Six stations run one solution file with six identifiers this way.
+    assignment (`MESSAGE_ID1 = 0x100`; in C, its `#define MESSAGE_ID1 0x100`) gets the given value
+    instead, and constants computed from it follow. Six stations run one solution file with six
+    identifiers this way. `c_options` are C18's command-line options for a .c file (`-Oi`).
     """
     path = Path(path)
-    return load_source(path, _read(path), defines)
+    return load_source(path, _read(path), defines, c_options=c_options)
 
 
-def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | None = None) -> ModuleType:
+def is_c(path: str | Path, language: str | None = None) -> bool:
+    """Whether a firmware is C: `language` ("c" or "python") if given, else its file's suffix (.c)."""
+    if language is not None:
+        if language not in ("c", "python"):
+            raise ValueError(f"a firmware's language is 'c' or 'python'; got {language!r}")
+        return language == "c"
+    return Path(path).suffix.lower() == ".c"
+
+
+def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | None = None, *,
+                language: str | None = None, c_options: Sequence[str] = ()) -> ModuleType:
     """Load firmware from its bytes, as if from the file `path` (its name in messages and tracebacks), with
-    `defines` as `load_firmware` takes them. Its lines are what tracebacks show, whatever the file holds later."""
+    `defines` as `load_firmware` takes them. Its lines are what tracebacks show, whatever the file holds later.
+    C or Python: `language`, else the suffix of `path`."""
     path = Path(path)
+    if is_c(path, language):
+        from appsim.firmware import c18
+        return c18.load(path, source, defines, c_options)
     tree = _parse(path, source)
     linecache.cache[str(path)] = (len(source), None, source.decode("utf-8").splitlines(True), str(path))
     if defines:
@@ -65,14 +82,18 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
 
 
 def constants(path: str | Path) -> list[str]:
-    """The names a firmware file assigns at top level (`NAME = <expr>`): the ones `defines` can replace."""
+    """The names a firmware file assigns at top level (`NAME = <expr>`; in C, its `#define NAME <constant>`): the
+    ones `defines` can replace."""
     path = Path(path)
+    if is_c(path):
+        from appsim.firmware import c18
+        return c18.constants(path, _read(path))
     return list(_assignments(_parse(path, _read(path))))
 
 
 def _read(path: Path) -> bytes:
     if not path.is_file():
-        raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py file such as "
+        raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py or .c file such as "
                             "exercises/ex1.py")
     try:
         return path.read_bytes()
@@ -132,7 +153,7 @@ def crash_message(error: BaseException, filename: str | None) -> str:
     report = traceback.TracebackException.from_exception(error, limit=-TRACEBACK_FRAMES)
     mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
-    what = _past_the_data(error, filename) or _as_python_words_it(error, report)
+    what = _in_c_words(error, filename) or _past_the_data(error, filename) or _as_python_words_it(error, report)
     return f"main() crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
 
 
@@ -148,6 +169,14 @@ def _as_python_words_it(error: BaseException, report: traceback.TracebackExcepti
         if found and "\n" not in suggestion:
             what += f". Did you mean: {suggestion}"
     return what
+
+
+def _in_c_words(error: BaseException, filename: str | None) -> str | None:
+    """For firmware translated from C, what went wrong as C would say it."""
+    if "appsim.firmware.c18" not in sys.modules:
+        return None
+    from appsim.firmware import c18
+    return c18.describe(error) if c18.is_c_file(filename) else None
 
 
 _SUBSCRIPT = re.compile(r"\b([A-Za-z_]\w*)\[\s*(-?\w+)\s*\]")      # RxData[3], RxData[i]
