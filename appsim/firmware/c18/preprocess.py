@@ -59,6 +59,7 @@ class _Walled(pcpp.Preprocessor):
         self.own_defines: dict[str, tuple[str, int]] = {}
         self.expanded = 0
         self.line_directive = "#line"
+        self.rewrite_paths = []         # pcpp would shorten paths under the working folder: keep the name as given
         for name in ("__PCPP__", "__DATE__", "__TIME__"):
             self.macros.pop(name, None)
         for name, value in PREDEFINED.items():

@@ -305,8 +305,9 @@ def _int_of(arg: Arg, size: int, signed: bool, spec: str, what: str = "an int") 
         shown = f"{arg.value:#x}" if arg.constant and arg.value >= 0 else str(arg.value)
         why = ("a constant takes the smallest type that holds its value" if arg.constant
                else "the arguments after the format are not promoted")
-        fixes = {1: "%hh", 2: "%", 3: "%H", 4: "%l"}
-        fix = f"{fixes[arg.size]}{spec[-1]}" if arg.size in fixes else ""
+        lengths = {1: "hh", 2: "", 3: "H", 4: "l"}
+        bare = spec[:-1].rstrip("hlHjzt")
+        fix = f"{bare}{lengths[arg.size]}{spec[-1]}" if arg.size in lengths else ""
         raise CRuntimeError(
             f"sprintf: {spec} reads {what} ({size} byte{'s' if size > 1 else ''}), but its argument {shown} is "
             f"{arg.spelled} ({arg.size} byte{'s' if arg.size > 1 else ''}): C18 pushes it as it is ({why}), so "
