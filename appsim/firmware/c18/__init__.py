@@ -21,7 +21,7 @@ from pycparser.c_parser import ParseError
 
 from appsim.chip.sfr import current_mcu
 from appsim.errors import CCompileError, CRuntimeError
-from appsim.firmware.c18 import compiler, preprocess, runtime
+from appsim.firmware.c18 import compiler, headers, preprocess, runtime
 from appsim.firmware.c18.compiler import LIB, MCU, RT, Sym, Translator
 from appsim.firmware.c18.library import BINDINGS, Restart
 from appsim.firmware.c18.parser import C18Parser
@@ -216,10 +216,14 @@ def _parse_error(error: ParseError, filename: str, text: str) -> CCompileError:
     return CCompileError(f"{what}{hint}{shown}", filename, line, column)
 
 
-def header_symbols(header: str, options: tuple[str, ...]) -> dict[str, Sym]:
-    """A kit header's declarations, parsed and known once per process (and per option set)."""
+def header_symbols(header: str, options: tuple[str, ...], *, parsed: bool = False) -> dict[str, Sym]:
+    """A kit header's declarations, known once per process (and per option set). The device header's come from the
+    register map it is written from (every SFR at its address, its NAMEbits, the instruction functions), unless
+    `parsed`: then from its text, as every other header's (a test checks that both agree)."""
     key = (header, options)
-    found = _symbols.get(key)
+    found = None if parsed else _symbols.get(key)
+    if found is None and header == headers.DEVICE_HEADER and not parsed:
+        found = _symbols[key] = compiler.device_symbols()
     if found is None:
         kit = preprocess.kit_header(header)
         inner: dict[str, Sym] = {}
@@ -227,13 +231,15 @@ def header_symbols(header: str, options: tuple[str, ...]) -> dict[str, Sym]:
             inner.update(header_symbols(included, options))
         typedefs = [s.name for s in inner.values() if s.kind == "typedef"]
         tree = C18Parser(typedefs).parse(kit.text, header)
-        found = _symbols[key] = dict(compiler.header_symbols(tree, header, options))
+        found = dict(compiler.header_symbols(tree, header, options))
+        if not parsed:
+            _symbols[key] = found
     return found
 
 
 def warm() -> None:
     """Preprocess and parse every kit header now (once per process): the grader's zygote does before it forks."""
-    for header in preprocess.headers.HEADERS:
+    for header in headers.HEADERS:
         header_symbols(header, ())
 
 

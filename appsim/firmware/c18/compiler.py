@@ -1815,3 +1815,16 @@ def header_symbols(tree: c_ast.FileAST, filename: str, options: Sequence[str]) -
         except _Refused as refused:
             raise RuntimeError(f"{filename}: {refused}") from None
     return tr.scopes[0]
+
+
+def device_symbols() -> dict[str, Sym]:
+    """The symbols of p18f8680.h, from the register map it is written from (appsim.firmware.c18.headers)."""
+    symbols: dict[str, Sym] = {}
+    register = T.UCHAR.qualified(volatile=True)
+    for name, address in ADDRESSES.items():
+        symbols[name] = Sym(name, "sfr", register, value=address)
+        if name in BITFIELDS:
+            symbols[f"{name}bits"] = Sym(f"{name}bits", "bits", T.UCHAR, value=address)
+    for name in ("Nop", "ClrWdt", "Reset"):
+        symbols[name] = Sym(name, "lib", Function(result=T.VOID), py=LIB + name)
+    return symbols

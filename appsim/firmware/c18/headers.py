@@ -10,6 +10,7 @@ from pathlib import Path
 
 from appsim.chip.sfr import ADDRESSES, BITFIELDS
 
+DEVICE_HEADER = "p18f8680.h"
 HEADERS = ("p18f8680.h", "CAN18XX8.h", "adc.h", "timers.h", "usart.h", "delays.h", "stdio.h", "string.h",
            "stdlib.h", "APP023_GLCD.h")
 

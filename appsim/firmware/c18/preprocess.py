@@ -44,7 +44,7 @@ class _Header:
     text: str                       # its declarations, preprocessed (those of the headers it includes are theirs)
 
 
-_HEADERS: dict[str, _Header] = {}
+_HEADERS: dict[tuple[str, bool], _Header] = {}
 
 
 class _Walled(pcpp.Preprocessor):
@@ -69,6 +69,12 @@ class _Walled(pcpp.Preprocessor):
 
     def fail(self, line: int, message: str) -> None:
         raise CCompileError(message, self.filename, line)
+
+    def parse(self, input: str, source: str | None = None, ignore: Any = None) -> None:
+        """As pcpp's, but the file keeps the name it is given (pcpp would make it absolute): tokens, #line markers
+        and every message name it so."""
+        self.ignore = ignore or {}
+        self.parser = self.parsegen(input, source, source)
 
     # -------------------------------------------------------------- pcpp's hooks
     def on_error(self, file: str, line: int, msg: str) -> None:
@@ -114,7 +120,7 @@ class _Walled(pcpp.Preprocessor):
         if len(self.included) >= MAX_INCLUDE_DEPTH * 4:
             self.fail(line, "too many #includes")
         if known not in self.included:
-            header = kit_header(known)
+            header = kit_header(known, declarations=False)
             for each in header.includes:
                 if each not in self.included:
                     self.included.append(each)
@@ -157,15 +163,21 @@ def _literal(value: int) -> str:
     return f"{value:#x}" if value >= 0 else str(value)
 
 
-def kit_header(name: str) -> _Header:
-    """A kit header's macros, preprocessed once per process."""
-    found = _HEADERS.get(name)
+def kit_header(name: str, declarations: bool = True) -> _Header:
+    """A kit header's macros (and, with `declarations`, its preprocessed text), preprocessed once per process. The
+    device header's declarations come from the register map it was written from (see c18.header_symbols): only its
+    directives are preprocessed."""
+    declarations = declarations or name != headers.DEVICE_HEADER
+    found = _HEADERS.get((name, declarations))
     if found is None:
         walled = _Walled(name, time.monotonic() + 60)
-        walled.parse(headers.header_text(name), name)
+        text = headers.header_text(name)
+        if name == headers.DEVICE_HEADER and not declarations:
+            text = "\n".join(line if line.lstrip().startswith("#") else "" for line in text.splitlines())
+        walled.parse(text, name)
         out = io.StringIO()
         walled.write(out)
-        found = _HEADERS[name] = _Header(dict(walled.macros), (*walled.included, name), out.getvalue())
+        found = _HEADERS[name, declarations] = _Header(dict(walled.macros), (*walled.included, name), out.getvalue())
     return found
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 from appsim.errors import GradeError
-from appsim.workshop.course import EXERCISE_FILES, EXERCISES
+from appsim.workshop.course import C_FILES, EXERCISE_FILES, EXERCISES
 from appsim.workshop.faults import Fault
 
 MAX_SOURCE = 512 << 10              # a firmware file (sandbox.protocol.MAX_SOURCE)
@@ -25,9 +25,9 @@ MAX_NOTEBOOK = 16 << 20
 MAX_ZIP = 256 << 20                 # a zip handed in, as a file
 MAX_UNZIPPED = 256 << 20            # what a zip unpacks to, in all
 MAX_MEMBERS = 10_000
-WHAT_A_SUBMISSION_IS = ("a submission is a folder holding any of ex1.py .. ex6.py and demo1_monitor.py (or Jupyter "
-                        "notebooks ex1.ipynb ... whose firmware cell has the tag `firmware`), or a .zip of one; a "
-                        "class is a folder (or a .zip) of submissions")
+WHAT_A_SUBMISSION_IS = ("a submission is a folder holding any of ex1.py .. ex6.py and demo1_monitor.py (or in C ex1.c "
+                        ".. ex6.c and demo1_monitor.c, or Jupyter notebooks ex1.ipynb ... whose firmware cell has the "
+                        "tag `firmware`), or a .zip of one; a class is a folder (or a .zip) of submissions")
 
 
 @dataclass(frozen=True)
@@ -73,10 +73,10 @@ def find_submissions(paths: Sequence[str | Path]) -> list[Submission]:
             found.extend(_from_folder(path, path.resolve().name))
         elif stat.S_ISREG(info.st_mode) and path.suffix.lower() == ".zip":
             found.extend(_from_zip_file(path, path.stem, class_zip=True))
-        elif stat.S_ISREG(info.st_mode) and path.suffix.lower() in (".py", ".ipynb"):
+        elif stat.S_ISREG(info.st_mode) and path.suffix.lower() in (".py", ".c", ".ipynb"):
             found.append(_submission(path.resolve().parent.name, [_Entry.on_disk(path)], str(path)))
         else:
-            raise GradeError(f"{path} is not a folder, a .zip, a .py or a .ipynb file: {WHAT_A_SUBMISSION_IS}")
+            raise GradeError(f"{path} is not a folder, a .zip, a .py, a .c or a .ipynb file: {WHAT_A_SUBMISSION_IS}")
     names: dict[str, Submission] = {}
     for submission in found:
         if submission.name in names:
@@ -210,7 +210,9 @@ def _read_member(archive: zipfile.ZipFile, member: zipfile.ZipInfo, limit: int) 
 # ====================================================================== one submission
 
 def _submission(name: str, entries: Iterable[_Entry], origin: str) -> Submission:
-    files: dict[str, tuple[str, bytes]] = {}
+    """A submission's files by exercise. An exercise handed in twice, in Python and in C (ex1.py and ex1.c), is graded
+    from neither: which one the student meant is not for the grader to guess (`ambiguous`)."""
+    handed: dict[str, dict[str, bytes]] = {}
     problems: dict[str, Fault] = {}
     notebooks: list[tuple[str, bytes]] = []
     for entry in entries:
@@ -231,19 +233,35 @@ def _submission(name: str, entries: Iterable[_Entry], origin: str) -> Submission
         if entry.name.lower().endswith(".ipynb"):
             notebooks.append((entry.name, data))
         elif exercise is not None:
-            files[exercise] = (EXERCISE_FILES[exercise], data)
+            handed.setdefault(exercise, {})[_canonical(exercise, entry.name)] = data
+    files: dict[str, tuple[str, bytes]] = {}
+    for exercise, by_name in handed.items():
+        if len(by_name) > 1:
+            problems[exercise] = _both(exercise, sorted(by_name))
+        else:
+            files[exercise] = next(iter(by_name.items()))
     for notebook, data in notebooks:
         exercise, firmware = firmware_from_notebook(notebook, data)
-        if exercise is None or exercise in files:
-            continue                        # not an exercise's notebook; or the .py handed in next to it wins
+        if exercise is None or exercise in handed:
+            continue                        # not an exercise's notebook; or the file handed in next to it wins
         if isinstance(firmware, Fault):
             problems.setdefault(exercise, firmware)
         else:
-            files[exercise] = (EXERCISE_FILES[exercise], firmware)
+            files[exercise] = firmware
             problems.pop(exercise, None)
     for exercise in files:
         problems.pop(exercise, None)
     return Submission(name, files, problems, origin)
+
+
+def _both(exercise: str, names: list[str]) -> Fault:
+    return Fault("ambiguous", f"{' and '.join(names)} were both handed in for {exercise}: one exercise is graded from "
+                              "one firmware, in Python or in C, so neither is graded. Hand in the one you mean.")
+
+
+def _canonical(exercise: str, name: str) -> str:
+    """The exercise's file name as graded, by the language of `name`: ex1.py, or ex1.c."""
+    return C_FILES[exercise] if name.lower().endswith(".c") else EXERCISE_FILES[exercise]
 
 
 def _refused(name: str, origin: str, fault: Fault) -> Submission:
@@ -252,10 +270,11 @@ def _refused(name: str, origin: str, fault: Fault) -> Submission:
 
 
 def _exercise_of(name: str) -> str | None:
-    """The exercise a file is for, by its name: ex1.py .. ex6.py, demo1_monitor.py (notebooks: see their metadata)."""
+    """The exercise a file is for, by its name: ex1.py .. ex6.py, demo1_monitor.py, their .c twins (notebooks: see
+    their metadata)."""
     lowered = name.lower()
     for exercise, file_name in EXERCISE_FILES.items():
-        if lowered in (file_name, file_name.removesuffix(".py") + ".ipynb"):
+        if lowered in (file_name, C_FILES[exercise], file_name.removesuffix(".py") + ".ipynb"):
             return exercise
     return None
 
@@ -265,9 +284,13 @@ def _may_hold_exercise(name: str) -> bool:
     return _exercise_of(name) is not None or name.lower().endswith(".ipynb")
 
 
-def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, bytes | Fault]:
-    """The exercise of a notebook (its metadata {"appsim": {"exercise": ...}}, else its name) and the Python of its
-    cells tagged `firmware` (IPython magics such as `%%writefile ex1.py` become comments), or why there is none."""
+def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, tuple[str, bytes] | Fault]:
+    """The exercise of a notebook (its metadata {"appsim": {"exercise": ...}}, else its name) and its firmware: the
+    code of its cells tagged `firmware` (IPython magics such as `%%writefile ex1.py` become comments), as the file it
+    would be (ex1.py, or ex1.c), or why there is none.
+
+    A notebook with a firmware cell in each language grades the one its `FIRMWARE = "ex1.c"` cell names (the file
+    its Station and check cells run); without that choice, the Python one."""
     exercise = _exercise_of(name)
     try:
         notebook = json.loads(data)
@@ -275,19 +298,48 @@ def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, bytes | 
         named = notebook.get("metadata", {}).get("appsim", {}).get("exercise")
         if named in EXERCISES:
             exercise = named
-        sources = []
+        by_language: dict[str, list[str]] = {}
+        chosen = None
         for cell in cells:
-            if cell.get("cell_type") == "code" and "firmware" in cell.get("metadata", {}).get("tags", []):
-                source = cell.get("source", "")
-                source = "".join(source) if isinstance(source, list) else str(source)
-                sources.append("\n".join(f"# {line}" if line.lstrip().startswith(("%", "!")) else line
-                                         for line in source.splitlines()))
+            if cell.get("cell_type") != "code":
+                continue
+            source = cell.get("source", "")
+            source = "".join(source) if isinstance(source, list) else str(source)
+            if "firmware" in cell.get("metadata", {}).get("tags", []):
+                language = _cell_language(source)
+                comment = "//" if language == "c" else "#"
+                by_language.setdefault(language, []).append("\n".join(
+                    f"{comment} {line}" if line.lstrip().startswith(("%", "!")) else line
+                    for line in source.splitlines()))
+            else:
+                chosen = _firmware_choice(source) or chosen
     except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
         return exercise, Fault("unreadable", f"{name} is not a Jupyter notebook that can be read")
-    if not sources:
+    if not by_language:
         return exercise, Fault("missing", f"{name} has no code cell tagged `firmware`: the notebook's firmware cell "
                                           "carries that tag (View > Cell Toolbar > Tags in Jupyter)")
-    return exercise, ("\n\n".join(sources) + "\n").encode()
+    language = chosen if chosen in by_language else "python" if "python" in by_language else next(iter(by_language))
+    if exercise is None:
+        return None, Fault("missing", f"{name} names no exercise")
+    graded = C_FILES[exercise] if language == "c" else EXERCISE_FILES[exercise]
+    return exercise, (graded, ("\n\n".join(by_language[language]) + "\n").encode())
+
+
+def _cell_language(source: str) -> str:
+    """The language of a firmware cell: C if its `%%writefile` writes a .c file."""
+    first = source.lstrip().split("\n", 1)[0].split()
+    return "c" if first[:1] == ["%%writefile"] and first[-1].lower().endswith(".c") else "python"
+
+
+def _firmware_choice(source: str) -> str | None:
+    """The language a cell's `FIRMWARE = "ex1.c"` (a plain string, read without running anything) chooses."""
+    for line in source.splitlines():
+        words = line.split("#", 1)[0].split("=", 1)
+        if len(words) == 2 and words[0].strip() == "FIRMWARE":
+            value = words[1].strip()
+            if len(value) > 2 and value[0] == value[-1] and value[0] in "'\"":
+                return "c" if value[1:-1].lower().endswith(".c") else "python"
+    return None
 
 
 # ====================================================================== reading

@@ -195,6 +195,12 @@ def boot() -> None:
     importlib.import_module("appsim.can.slcan")
 
 
+def boot_c() -> None:
+    """Load the C translator and parse the kit's headers, once, before the first C firmware is forked: a submission
+    in C pays for them once, one in Python never."""
+    importlib.import_module("appsim.firmware.c18").warm()
+
+
 def main(settings: dict[str, Any], read_fd: int, write_fd: int) -> None:
     """One firmware's life in a fresh process: walled in, it says hello, receives its firmware, loads it, says what
     it calls itself, and runs main() when told. `settings` holds the limits and the seccomp filter (if any)."""

@@ -105,12 +105,13 @@ class Zygote:
         self.watchdog.forget(self)
         return hello and not self.expired
 
-    def fork(self, deadline: float) -> Child | None:
-        """A fresh child for one exercise, None if this sandbox forks no more (it ended, or does not answer)."""
+    def fork(self, deadline: float, c: bool = False) -> Child | None:
+        """A fresh child for one exercise (`c`: for a C firmware), None if this sandbox forks no more (it ended, or does
+        not answer)."""
         from_grader, to_child = os.pipe()
         from_child, to_grader = os.pipe()
         try:
-            socket.send_fds(self.control, [wire.FORK], [from_grader, to_grader])
+            socket.send_fds(self.control, [wire.FORK_C if c else wire.FORK], [from_grader, to_grader])
             reply = self._answer(time.monotonic() + FORK_S)
         except OSError:
             reply = None
@@ -382,10 +383,10 @@ class Sandbox:
         self._zygote: Zygote | None = None
         self._owner: object = None
 
-    def take(self, deadline: float, owner: object = None, *, spare: bool = False) -> Child:
+    def take(self, deadline: float, owner: object = None, *, spare: bool = False, c: bool = False) -> Child:
         """A fresh child for one exercise of submission `owner`, in that submission's sandbox (booted now, or while the
-        one before was graded); `spare` starts the next submission's sandbox booting. SandboxUnavailable if none will
-        boot."""
+        one before was graded); `spare` starts the next submission's sandbox booting; `c`: for a C firmware.
+        SandboxUnavailable if none will boot."""
         problem = ""
         for _ in range(BOOT_ATTEMPTS):
             if self._zygote is None or self._owner != owner or self._zygote.process.poll() is not None:
@@ -394,7 +395,7 @@ class Sandbox:
                     if time.monotonic() >= deadline:
                         break
                     continue
-            child = self._zygote.fork(deadline)
+            child = self._zygote.fork(deadline, c)
             if child is not None and child.ready(deadline):
                 return child
             problem = child.why_not() if child is not None else "its sandbox ended"

@@ -61,7 +61,8 @@ class SandboxedFirmware:
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
         try:
-            child = self._child = self.sandbox.take(self.deadline, self.owner, spare=self.spare)
+            child = self._child = self.sandbox.take(self.deadline, self.owner, spare=self.spare,
+                                                    c=self.name.lower().endswith(".c"))
         except SandboxUnavailable as error:
             raise Fatal(self._ends(Fault("grader", str(error)))) from None
         child.channel.send(wire.source_message(self.name, self.source))

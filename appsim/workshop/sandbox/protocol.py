@@ -37,6 +37,7 @@ SOURCE, GO, VALUE, DONE, ERROR = b"S", b"G", b"V", b"K", b"Z"
 # (SCM_RIGHTS), answered FORKED pid:i32 (as the sandbox numbers it); ENDED pid:i32 status:i32 cpu_s:f64 when a child
 # ended (a signal as a negative status). HELLO once booted.
 FORK, FORKED, ENDED = b"F", b"K", b"E"
+FORK_C = b"C"       # FORK for a C firmware: the zygote loads the C translator and the kit's headers first, once
 FORKED_MESSAGE = struct.Struct("<ci")
 ENDED_MESSAGE = struct.Struct("<ciid")
 MAX_CONTROL = 32

@@ -1,7 +1,8 @@
 """One submission's sandbox, inside: a process that loaded the firmware library once and forks a fresh child for each
 of that submission's exercises, so a firmware starts in milliseconds where booting Python takes a tenth of a second.
 
-It runs no firmware itself. The grader asks on the control socket (FORK, with the child's two pipe ends); it answers
+It runs no firmware itself. The grader asks on the control socket (FORK, with the child's two pipe ends; FORK_C for a C
+firmware, which first loads the C translator and the kit's headers, once per sandbox); it answers
 FORKED with the child's number, and ENDED with how a child ended (its status and CPU time) once it has.
 """
 from __future__ import annotations
@@ -15,7 +16,16 @@ import sys
 from typing import Any
 
 from appsim.workshop.sandbox import child
-from appsim.workshop.sandbox.protocol import ENDED, ENDED_MESSAGE, FORK, FORKED, FORKED_MESSAGE, HELLO, MAX_CONTROL
+from appsim.workshop.sandbox.protocol import (
+    ENDED,
+    ENDED_MESSAGE,
+    FORK,
+    FORK_C,
+    FORKED,
+    FORKED_MESSAGE,
+    HELLO,
+    MAX_CONTROL,
+)
 
 
 def main(settings: dict[str, Any]) -> None:
@@ -47,7 +57,10 @@ def main(settings: dict[str, Any]) -> None:
                 message, fds = FORK, []
             if not message:
                 return                  # the grader is done with this submission
-            pid = _fork(settings, fds, keep={control_fd, ended_r, ended_w}) if message == FORK and len(fds) == 2 else 0
+            if message == FORK_C:
+                child.boot_c()          # once: this child and every later one start with the headers parsed
+            pid = (_fork(settings, fds, keep={control_fd, ended_r, ended_w})
+                   if message in (FORK, FORK_C) and len(fds) == 2 else 0)
             for fd in fds:
                 os.close(fd)
             control.send(FORKED_MESSAGE.pack(FORKED, pid))
