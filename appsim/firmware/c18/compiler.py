@@ -98,6 +98,7 @@ class Translator:
         self.struct_keys = 0
         self.main_seen = False
         self.called: set[str] = set()
+        self.struct_nodes: dict[int, Struct] = {}
 
     # ================================================================== errors and locations
     def refuse(self, node: Any, message: str) -> _Refused:
@@ -268,6 +269,9 @@ class Translator:
 
     def struct_type(self, node: c_ast.Struct) -> Struct:
         tag = node.name or ""
+        known = self.struct_nodes.get(id(node))
+        if known is not None:
+            return known                # one definition declaring several names: pycparser shares its node
         if node.decls is None:
             for scope in reversed(self.tags):
                 if tag in scope:
@@ -296,10 +300,13 @@ class Translator:
                 raise self.refuse(decl, f"struct {tag} has two members named {decl.name}")
             members.append(Member(decl.name, mtype, width))
         existing = self.tags[-1].get(tag) if tag else None
-        key = existing.key if existing is not None and existing.members is None else self._new_key()
+        if existing is not None and existing.members is not None:
+            raise self.refuse(node, f"struct {tag} is defined twice")
+        key = existing.key if existing is not None else self._new_key()
         struct = Struct(tag=tag, members=tuple(members), key=key)
         if tag:
             self.tags[-1][tag] = struct
+        self.struct_nodes[id(node)] = struct
         return struct
 
     def _new_key(self) -> int:
@@ -1257,7 +1264,7 @@ class Translator:
             container, index, mtype = self.member(node)
             if mtype.const:
                 raise self.refuse(node, f"{node.field.name} is const")
-            return _ItemLV(self, container, index, mtype, node)
+            return _ItemLV(self, container, ast.Constant(index), mtype, node)
         if isinstance(node, c_ast.ArrayRef):
             base = self.expr(node.name)
             if isinstance(base.t, Array):
