@@ -28,7 +28,7 @@ from appsim.firmware.c18.parser import C18Parser
 
 OPTIONS = {"-Oi": "integer promotions, as ISO C has them (C18's default has none)",
            "-k": "plain char is unsigned (C18's default: signed)"}
-TRANSLATION_SECONDS = 10.0          # within every exercise's budget
+TRANSLATION_SECONDS = 5.0           # within every exercise's budget (a translation takes 10 to 50 ms)
 MAX_NESTING = 60                    # ( [ { nested in the file
 _CACHE_SIZE = 64
 
@@ -58,7 +58,7 @@ def describe(error: BaseException) -> str | None:
     """What a C firmware's run-time error means, in C's words (None: the error says it well enough)."""
     if isinstance(error, CRuntimeError):
         return str(error)
-    if isinstance(error, UnboundLocalError):
+    if isinstance(error, (UnboundLocalError, NameError)):     # a local never set: Python looks for a global
         found = re.search(r"'(\w+)'", str(error))
         name = (found.group(1) if found else "a local variable").split("__")[0]
         return (f"{name} is read before anything was stored in it: C18 leaves a local variable's value undefined "
@@ -210,7 +210,8 @@ def _parse_error(error: ParseError, filename: str, text: str) -> CCompileError:
     hint = ""
     if "before" in what and line > 1:
         previous = text.splitlines()[line - 2].rstrip()
-        if previous and not previous.endswith((";", "{", "}", ",", ")", "/", "*")) and not previous.lstrip().startswith("#"):
+        ends = (";", "{", "}", ",", ")", "/", "*")
+        if previous and not previous.endswith(ends) and not previous.lstrip().startswith("#"):
             hint = " (is a ';' missing at the end of the line before?)"
     shown = f": `{source_line.strip()}`" if source_line.strip() else ""
     return CCompileError(f"{what}{hint}{shown}", filename, line, column)
@@ -264,7 +265,8 @@ def _define_values(expanded: Mapping[str, str], translator: Translator, filename
 
 def _module(tr: Translator, filename: str) -> tuple[ast.Module, dict[str, Any]]:
     """The module's code: the functions, the C startup (globals' initial values) and main(), which runs it."""
-    namespace: dict[str, Any] = {RT: runtime, "__current_mcu": current_mcu, "__Restart": Restart, MCU: None}
+    namespace: dict[str, Any] = {RT: runtime, "__current_mcu": current_mcu, "__Restart": Restart, MCU: None,
+                                 "__c18__": True}
     for name, binding in BINDINGS.items():
         namespace[LIB + name] = binding
     for name, value in tr.constants.items():
@@ -305,5 +307,5 @@ def _place(node: ast.AST, line: int, force: bool = False) -> None:
     for sub in ast.walk(node):
         if isinstance(sub, (ast.expr, ast.stmt, ast.excepthandler, ast.arg)):
             if force or getattr(sub, "lineno", None) is None:
-                sub.lineno, sub.col_offset = line, 0            # type: ignore[union-attr]
-                sub.end_lineno, sub.end_col_offset = line, 1    # type: ignore[union-attr]
+                sub.lineno, sub.col_offset = line, 0
+                sub.end_lineno, sub.end_col_offset = line, 1

@@ -125,8 +125,8 @@ class Translator:
             for sub in ast.walk(item):
                 if isinstance(sub, (ast.expr, ast.stmt, ast.excepthandler, ast.arg, ast.keyword)):
                     if getattr(sub, "lineno", None) is None:
-                        sub.lineno, sub.col_offset = line, column       # type: ignore[union-attr]
-                        sub.end_lineno, sub.end_col_offset = line, end  # type: ignore[union-attr]
+                        sub.lineno, sub.col_offset = line, column
+                        sub.end_lineno, sub.end_col_offset = line, end
         return py
 
     def tick(self, node: Any) -> None:
@@ -244,14 +244,14 @@ class Translator:
             words = list(node.names)
             if words == ["void"]:
                 return T.VOID
+            if any(word in ("float", "double") for word in words):
+                raise self.refuse(node, "floating point (float, double) is not supported by the kit's C yet: "
+                                        "C18's sprintf has no %f either; compute in integers (millivolts, tenths)")
             if len(words) == 1 and words[0] not in ("char", "int", "short", "long", "signed", "unsigned"):
                 sym = self.lookup(words[0])
                 if sym is None or sym.kind != "typedef":
                     raise self.refuse(node, f"{words[0]} is not a type")
                 return sym.ctype
-            if any(word in ("float", "double") for word in words):
-                raise self.refuse(node, "floating point (float, double) is not supported by the kit's C yet: "
-                                        "C18's sprintf has no %f either; compute in integers (millivolts, tenths)")
             found = T.integer_type(words, self.unsigned_char)
             if found is None:
                 raise self.refuse(node, f"'{' '.join(words)}' is not a C18 type (char, int, short long, long, each "
@@ -471,7 +471,7 @@ class Translator:
             if len(init.exprs) > len(t.members):
                 raise self.refuse(init, f"{len(init.exprs)} initial values for struct {t.tag}'s "
                                         f"{len(t.members)} members")
-            items = [self.initialiser(m.ctype, item, decl) for m, item in zip(t.members, init.exprs)]
+            items = [self.initialiser(m.ctype, item, decl) for m, item in zip(t.members, init.exprs, strict=False)]
             items += [self.zero(m.ctype) for m in t.members[len(items):]]
             return ast.List(items, ast.Load())
         if isinstance(init, c_ast.InitList):
@@ -504,7 +504,7 @@ class Translator:
         prologue: list[ast.stmt] = []
         params = node.decl.type.args.params if node.decl.type.args else []
         named = [p for p in params if not isinstance(p, c_ast.EllipsisParam) and getattr(p, "name", None)]
-        for param, ptype in zip(named, ftype.params):
+        for param, ptype in zip(named, ftype.params, strict=False):
             psym = self.declare(Sym(param.name, "var", ptype, py=self.py_name(param.name),
                                     boxed=param.name in self.addressed), param)
             if psym.boxed:
@@ -713,9 +713,9 @@ class Translator:
         self.scopes.pop()
         table_name = self.temp("cases")
         self.constants[table_name] = table
-        value = self.convert(subject, subject_t, node.cond, "the switch's value")
+        subject_py = self.convert(subject, subject_t, node.cond, "the switch's value")
         out = [self.at(node, ast.Assign([_name(key, True)], _call(ast.Attribute(_name(table_name), "get", ast.Load()),
-                                                                    [value, ast.Constant(default)])))]
+                                                                    [subject_py, ast.Constant(default)])))]
         if entry.used:
             out.append(self.at(node, ast.Assign([_name(flag, True)], ast.Constant(False))))
         out.append(self.at(node, ast.While(ast.Constant(True), body + [ast.Break()], [])))
@@ -753,10 +753,10 @@ class Translator:
             self.globals.add(py)
             if decl.init is not None and self._non_constant(decl.init):
                 raise self.refuse(decl.init, f"{decl.name} is static: its initial value must be a constant")
-            value = self.initialiser(ctype, decl.init, decl) if decl.init is not None else self.zero(ctype)
-            self.startup.append(self.at(decl, ast.Assign([_name(py, True)], self.boxed(sym, value))))
+            initial = self.initialiser(ctype, decl.init, decl) if decl.init is not None else self.zero(ctype)
+            self.startup.append(self.at(decl, ast.Assign([_name(py, True)], self.boxed(sym, initial))))
             return []
-        value = self.initialiser(ctype, decl.init, decl) if decl.init is not None else (
+        value: ast.expr | None = self.initialiser(ctype, decl.init, decl) if decl.init is not None else (
             self.zero(ctype) if isinstance(ctype, (Array, Struct)) else None)
         sym = self.declare(Sym(decl.name, "var", ctype, py=self.py_name(decl.name),
                                boxed=decl.name in self.addressed and not isinstance(ctype, Array)), decl)
@@ -881,12 +881,12 @@ class Translator:
                 value = int(digits)
         except ValueError:
             raise self.refuse(node, f"{node.value} is not a number C18 reads") from None
-        t = T.constant_type(value, decimal=not digits.startswith(("0x", "0b")) and not (
+        typed = T.constant_type(value, decimal=not digits.startswith(("0x", "0b")) and not (
             len(digits) > 1 and digits.startswith("0")), unsigned="u" in suffix, long="l" in suffix,
             promote=self.promote)
-        if t is None:
+        if typed is None:
             raise self.refuse(node, f"{node.value} is too big for any C18 type (32 bits at most)")
-        return E(ast.Constant(value), t, value, value, value)
+        return E(ast.Constant(value), typed, value, value, value)
 
     def x_ID(self, node: c_ast.ID) -> E:
         sym = self.lookup(node.name)
@@ -943,7 +943,7 @@ class Translator:
         e = self.rvalue(node.expr)
         if not isinstance(e.t, Int):
             raise self.refuse(node, f"{op} takes an integer; this is {e.t.spelled()}")
-        t = T.promoted(e.t) if self.promote else replace(e.t.unqualified(), width=None)
+        t = T.promoted(e.t) if self.promote else T.plain(e.t)
         assert isinstance(t, Int)
         a = self.as_int(e, t)
         if op == "+":
@@ -981,7 +981,7 @@ class Translator:
         if not isinstance(a.t, Int) or not isinstance(b.t, Int):
             raise self.refuse(node, f"{op} takes integers; here {a.t.spelled()} and {b.t.spelled()}")
         if op in ("<<", ">>"):
-            t = T.promoted(a.t) if self.promote else replace(a.t.unqualified(), width=None)
+            t = T.promoted(a.t) if self.promote else T.plain(a.t)
             assert isinstance(t, Int)
             x = self.as_int(a, t)
             n = b
@@ -1078,7 +1078,7 @@ class Translator:
             if not isinstance(e.t, Int):
                 raise self.refuse(node, f"a cast of {e.t.spelled()} to {t.spelled()}: the kit's C keeps pointers "
                                         "and numbers apart (addresses are not numbers here)")
-            return self.as_int(e, replace(t.unqualified(), width=None))     # type: ignore[arg-type]
+            return self.as_int(e, T.plain(t))
         if isinstance(t, Pointer):
             if isinstance(e.t, Int):
                 if e.const == 0:
@@ -1105,10 +1105,11 @@ class Translator:
         assert isinstance(ftype, Function)
         given = list(node.args.exprs) if node.args is not None else []
         if len(given) < len(ftype.params) or (len(given) > len(ftype.params) and not ftype.variadic):
-            raise self.refuse(node, f"{name}() takes {len(ftype.params)} argument{'s' if len(ftype.params) != 1 else ''}"
+            plural = "s" if len(ftype.params) != 1 else ""
+            raise self.refuse(node, f"{name}() takes {len(ftype.params)} argument{plural}"
                                     f"{' or more' if ftype.variadic else ''}; here it has {len(given)}")
         args: list[ast.expr] = []
-        for k, (arg, ptype) in enumerate(zip(given, ftype.params)):
+        for k, (arg, ptype) in enumerate(zip(given, ftype.params, strict=False)):
             e = self.rvalue(arg)
             what = f"argument {k + 1} of {name}()" + (f" ({ftype.names[k]})" if k < len(ftype.names)
                                                         and ftype.names[k] else "")
@@ -1176,7 +1177,7 @@ class Translator:
                                         "you mean the value it points to, *p or p[0]?")
             if not isinstance(e.t, Int):
                 raise self.refuse(node, f"{what} is {t.spelled()}; this is {e.t.spelled()}")
-            return self.as_int(e, replace(t.unqualified(), width=t.width)).py     # type: ignore[arg-type]
+            return self.as_int(e, replace(T.plain(t), width=t.width)).py
         if isinstance(t, Pointer):
             if isinstance(e.t, Int):
                 if e.const == 0:
@@ -1230,8 +1231,8 @@ class Translator:
             return
         size_s = self._size(s, node) if not isinstance(s, Function) else 0
         size_d = self._size(d, node) if not isinstance(d, Function) else 0
-        raise self.refuse(node, f"{what} points to {d.spelled()} ({size_d} byte{'s' if size_d != 1 else ''}), but "
-                                f"{e.name or 'this'} points to {s.spelled()} ({size_s} byte{'s' if size_s != 1 else ''})"
+        raise self.refuse(node, f"{what} points to {d.spelled()} ({_bytes(size_d)}), but "
+                                f"{e.name or 'this'} points to {s.spelled()} ({_bytes(size_s)})"
                                 f": {'the function would write past it' if size_d > size_s else 'the sizes differ'} "
                                 f"(C18 warns: suspicious pointer conversion). The kit's C does not reinterpret "
                                 "memory: give it a variable of the type it points to")
@@ -1269,10 +1270,10 @@ class Translator:
             base = self.expr(node.name)
             if isinstance(base.t, Array):
                 if base.t.rom or base.t.const:
-                    raise self.refuse(node, f"{base.name or 'this array'} is {'in program memory' if base.t.rom else 'const'}"
-                                            ": it cannot be written")
-                index = self.checked_index(base, node.subscript, node, write=True)
-                return _ItemLV(self, base.py, index, base.t.element, node)
+                    where = "in program memory" if base.t.rom else "const"
+                    raise self.refuse(node, f"{base.name or 'this array'} is {where}: it cannot be written")
+                position = self.checked_index(base, node.subscript, node, write=True)
+                return _ItemLV(self, base.py, position, base.t.element, node)
             p = self.rvalue(node.name)
             if not isinstance(p.t, Pointer):
                 raise self.refuse(node, f"{p.t.spelled()} cannot be indexed")
@@ -1301,6 +1302,7 @@ class Translator:
         assert k.lo is not None and k.hi is not None
         if 0 <= k.lo and k.hi < n:
             return k.py
+        test_value: ast.expr
         if isinstance(k.py, ast.Name):
             value: ast.expr = k.py
             test_value = k.py
@@ -1415,8 +1417,8 @@ class Translator:
                 raise self.refuse(node, "& of an element of something that is not an array")
             return E(_rt("advance", [p.py, k.py]), p.t, name=p.name)
         if isinstance(target, c_ast.StructRef):
-            container, index, mtype = self.member(target)
-            return E(_rt("Ptr", [container, ast.Constant(index), ast.Constant(index), ast.Constant(index + 1),
+            container, member, mtype = self.member(target)
+            return E(_rt("Ptr", [container, ast.Constant(member), ast.Constant(member), ast.Constant(member + 1),
                                  ast.Constant(target.field.name), ast.Constant(mtype.rom),
                                  ast.Constant(_signed_byte(mtype))]), Pointer(target=mtype),
                      name=target.field.name)
@@ -1498,7 +1500,8 @@ class _LValue:
             return self.cached
         py = self.load()
         t = self.t
-        return E(py, t, *((t.low, t.high) if isinstance(t, Int) else (None, None)), name=self.name)
+        lo, hi = (t.low, t.high) if isinstance(t, Int) else (None, None)
+        return E(py, t, lo, hi, name=self.name)
 
     def store(self, value: ast.expr) -> list[ast.stmt]:
         raise NotImplementedError
@@ -1688,6 +1691,10 @@ def _call(func: ast.expr, args: list[ast.expr]) -> ast.Call:
 
 def _rt(helper: str, args: list[ast.expr]) -> ast.Call:
     return _call(ast.Attribute(_name(RT), helper, ast.Load()), args)
+
+
+def _bytes(n: int) -> str:
+    return f"{n} byte{'s' if n != 1 else ''}"
 
 
 def _signed_byte(t: CType) -> bool:

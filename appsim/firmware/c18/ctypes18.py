@@ -213,17 +213,20 @@ def common(a: Int, b: Int, promote: bool) -> Int:
     if promote:
         a, b = promoted(a), promoted(b)
     if a.size != b.size:
-        return (a if a.size > b.size else b).unqualified()          # type: ignore[return-value]
-    if not a.signed:
-        return replace(a.unqualified(), width=None)                 # type: ignore[arg-type]
-    return replace(b.unqualified(), width=None)                     # type: ignore[arg-type]
+        return plain(a if a.size > b.size else b)
+    return plain(a if not a.signed else b)
 
 
 def promoted(a: Int) -> Int:
     """The integer promotion: a type (or bit-field) smaller than int becomes int, which holds all its values."""
     if a.size < 2 or a.width is not None and a.width < 16:
         return INT
-    return replace(a.unqualified(), width=None)                     # type: ignore[arg-type]
+    return plain(a)
+
+
+def plain(a: Int) -> Int:
+    """The integer type itself: no qualifier, no bit-field width."""
+    return Int(bytes_=a.bytes_, signed=a.signed, name=a.name)
 
 
 def constant_type(value: int, *, decimal: bool, unsigned: bool, long: bool, promote: bool) -> Int | None:

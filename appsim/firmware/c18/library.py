@@ -102,7 +102,7 @@ def strcat(dest: Ptr | None, src: Ptr | None) -> Ptr | None:
 
 
 def _compare(a: list[int], b: list[int]) -> int:
-    for x, y in zip(a + [0], b + [0]):
+    for x, y in zip(a + [0], b + [0], strict=False):
         if x != y:
             return -1 if x < y else 1
     return 0

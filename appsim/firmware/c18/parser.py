@@ -26,7 +26,7 @@ _teach_pycparser()
 
 
 class C18Lexer(c_lexer.CLexer):
-    def __init__(self, *args, **kwargs) -> None:    # type: ignore[no-untyped-def]
+    def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self._keyword_map.update(C18_QUALIFIERS)
 

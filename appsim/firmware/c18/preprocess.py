@@ -17,8 +17,8 @@ from pcpp import preprocessor as pcpp
 from appsim.errors import CCompileError
 from appsim.firmware.c18 import headers
 
-MAX_OUTPUT_CHARS = 2_000_000        # the preprocessed file (the workshop's biggest, Demo1, is about 20 kB)
-MAX_EXPANDED_TOKENS = 200_000       # tokens the macro expansions of the file produce, in all
+MAX_OUTPUT_CHARS = 1_000_000        # the preprocessed file (the workshop's biggest, Demo1, is about 20 kB)
+MAX_EXPANDED_TOKENS = 200_000       # tokens the file's macro expansions add, in all
 MAX_MACRO_DEPTH = 64                # macros expanding macros
 MAX_INCLUDE_DEPTH = 8
 # C18's predefined macros (its User's Guide, 2.10), and fixed __DATE__/__TIME__: the kit is deterministic.
@@ -59,11 +59,11 @@ class _Walled(pcpp.Preprocessor):
         self.own_defines: dict[str, tuple[str, int]] = {}
         self.expanded = 0
         self.line_directive = "#line"
-        self.rewrite_paths = []         # pcpp would shorten paths under the working folder: keep the name as given
+        self.rewrite_paths: list[tuple[str, str]] = []      # pcpp shortens paths under the working folder
         for name in ("__PCPP__", "__DATE__", "__TIME__"):
             self.macros.pop(name, None)
-        for name, value in PREDEFINED.items():
-            self.define(f"{name} {value}")
+        for name, text in PREDEFINED.items():
+            self.define(f"{name} {text}")
         for name, value in locked.items():
             self.define(f"{name} {_literal(value)}")
 
@@ -139,18 +139,39 @@ class _Walled(pcpp.Preprocessor):
             self.own_defines[name] = (_literal(self.locked[name]), words[0].lineno)
             return
         super().define(tokens)
+        if name in self.macros and self._expanded_size(name, set()) > MAX_EXPANDED_TOKENS:
+            self.fail(words[0].lineno, f"#define {name} expands to more than {MAX_EXPANDED_TOKENS:,} tokens: a macro "
+                                       "bomb (a macro that uses another several times, over and over)")
         if source == self.filename and name in self.macros and self.macros[name].arglist is None:
             self.own_defines[name] = ("".join(t.value for t in self.macros[name].value).strip(), words[0].lineno)
+
+    def _expanded_size(self, name: str, seen: set[str]) -> int:
+        """How many tokens macro `name` expands to, its macros expanded (each counted once per use), bounded."""
+        sizes = self.__dict__.setdefault("_sizes", {})
+        macro = self.macros[name]
+        if sizes.get(name, (None,))[0] is macro:
+            return int(sizes[name][1])
+        total = 0
+        for token in macro.value:
+            word = token.value
+            if word in self.macros and word != name and word not in seen:
+                total += self._expanded_size(word, seen | {name})
+            else:
+                total += 1
+            if total > MAX_EXPANDED_TOKENS:
+                break
+        sizes[name] = (macro, total)
+        return total
 
     def expand_macros(self, tokens: Any, expanding_from: Any = []) -> Any:   # noqa: B006 (pcpp's own signature)
         if len(expanding_from) > MAX_MACRO_DEPTH:
             self.fail(tokens[0].lineno if tokens else 0,
                       f"macros expand more than {MAX_MACRO_DEPTH} deep ({' -> '.join(expanding_from[:4])} ...)")
         result = super().expand_macros(tokens, expanding_from)
-        self.expanded += len(result)
+        self.expanded += max(0, len(result) - len(tokens))
         if self.expanded > MAX_EXPANDED_TOKENS:
             self.fail(result[0].lineno if result else 0,
-                      f"the macros expand to more than {MAX_EXPANDED_TOKENS:,} tokens: a macro bomb (a macro "
+                      f"the macros add more than {MAX_EXPANDED_TOKENS:,} tokens: a macro bomb (a macro "
                       "that uses another several times, over and over)?")
         if time.monotonic() > self.deadline:
             self.fail(result[0].lineno if result else 0, "the preprocessor ran out of its time")

@@ -134,7 +134,7 @@ def string_at(p: Ptr | None, function: str) -> list[int]:
     if p is None:
         raise CRuntimeError(f"{function} was given a NULL pointer where it reads a string")
     mem, i, hi = p.mem, p.i, p.hi
-    codes = []
+    codes: list[int] = []
     while i < hi:
         code = mem[i]
         if code == 0:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import random
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -50,6 +50,11 @@ class Firmware:
     filename: str | None
     label: str
     identity: Mapping[str, int] = field(default_factory=dict)
+    language: str = "python"        # or "c": the language its messages quote code in
+
+    def says(self, python: str, c: str) -> str:
+        """A piece of code as the firmware's own language writes it."""
+        return c if self.language == "c" else python
 
 
 class Loadable(Protocol):
@@ -74,24 +79,30 @@ def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmwar
         module = load()
     except FirmwareError as error:
         raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-    return Firmware(module.main, filename, label, identity_of(module))
+    return Firmware(module.main, filename, label, identity_of(module), language_of(module))
 
 
-def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable) -> Firmware:
-    """The firmware as a runnable thing; one that does not load is `Fatal`, with its line."""
+def language_of(module: ModuleType) -> str:
+    return "c" if getattr(module, "__c18__", False) else "python"
+
+
+def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable,
+            c_options: Sequence[str] = ()) -> Firmware:
+    """The firmware as a runnable thing; one that does not load is `Fatal`, with its line. `c_options` are C18's
+    options for a .c file."""
     if isinstance(firmware, (str, Path)):
         path = Path(firmware)
-        return loaded(lambda: load_firmware(path), str(path), str(path))
+        return loaded(lambda: load_firmware(path, c_options=c_options), str(path), str(path))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):
             raise Fatal(Fault("load", f"{firmware.__name__} has no main(): a firmware defines `def main():` that "
                                       "loops forever, as main() does in EX1.C"))
         filename = getattr(firmware, "__file__", None)
         label = Path(filename).name if filename else firmware.__name__
-        return Firmware(firmware.main, filename, label, identity_of(firmware))
+        return Firmware(firmware.main, filename, label, identity_of(firmware), language_of(firmware))
     load = getattr(firmware, "load", None)
     if callable(load):
-        return load()
+        return load()               # it loads itself, with its own options
     if callable(firmware):
         code = getattr(firmware, "__code__", None)
         return Firmware(firmware, code.co_filename if code else None, f"{getattr(firmware, '__name__', 'main')}()")

@@ -72,7 +72,8 @@ class SandboxedFirmware:
         kind, data = message[:1], message[1:]
         try:
             if kind == wire.LOADED:
-                return Firmware(self._main, None, self.name, wire.decode_identity(data))
+                return Firmware(self._main, None, self.name, wire.decode_identity(data),
+                                "c" if self.name.lower().endswith(".c") else "python")
             if kind == wire.LOAD_FAILED:
                 raise Fatal(self._ends(Fault("load", f"the firmware does not load: {wire.decode_text(data)}")))
             ended = self._ending(kind, data)

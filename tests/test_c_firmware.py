@@ -1,0 +1,462 @@
+"""C firmware (MPLAB C18's C, translated by appsim.firmware.c18) where Python firmware goes: the C solutions earn full
+marks, the C starters fail where their Python twins fail with the same messages, six C stations give the Python
+stations' bus trace, C18's semantics and traps hold (no integer promotion, constants of the smallest type, variadic
+arguments not promoted, rom and RAM apart), and every error names the .c file's line, in C's words."""
+from __future__ import annotations
+
+import re
+import time
+
+import pytest
+from workshop import KIT, classroom
+
+from appsim.chip.mcu import PIC18F8680
+from appsim.chip.sfr import ADDRESSES, BITFIELDS
+from appsim.errors import CCompileError
+from appsim.firmware import adc, an738, timers, usart
+from appsim.firmware import c18 as c18_package
+from appsim.firmware.c18 import headers
+from appsim.firmware.loader import constants, load_firmware, load_source
+from appsim.sim import Simulator
+from appsim.workshop.checks import check, check_names
+from appsim.workshop.course import C_FILES, EXERCISE_FILES
+from appsim.workshop.faults import board_fault
+
+SOLUTIONS, STARTERS = KIT / "solutions", KIT / "exercises"
+CLASSROOM_EXERCISES = [f"ex{n}" for n in range(1, 7)]
+
+
+def run_c(source: str, *, options: tuple[str, ...] = (), seconds: float = 0.001, name: str = "t.c"):
+    """A C file's main() on a bare PIC18F8680 for `seconds`: its module, and its process."""
+    module = load_source(name, source.encode(), c_options=options)
+    sim = Simulator()
+    mcu = PIC18F8680(sim)
+    process = mcu.run(module.main)
+    sim.run_for(seconds)
+    return module, process
+
+
+def c_error(source: str, *, name: str = "t.c") -> CCompileError:
+    with pytest.raises(CCompileError) as caught:
+        load_source(name, source.encode())
+    return caught.value
+
+
+def bytes_of(array: list[int]) -> bytes:
+    return bytes(v & 0xFF for v in array).split(b"\0")[0]
+
+
+MAIN_LOOP = "\nvoid main(void) { work(); while (1) { Nop(); } }\n"
+
+
+# ====================================================================== the workshop in C
+
+@pytest.mark.parametrize("seed", [202, 7, 31337])
+@pytest.mark.parametrize("exercise", CLASSROOM_EXERCISES)
+def test_every_c_solution_gets_full_marks(exercise, seed):
+    verdict = check(exercise, SOLUTIONS / C_FILES[exercise], seed=seed)
+    assert verdict.score == verdict.max_score, str(verdict)
+
+
+def _without_names(text: str) -> str:
+    return re.sub(r"\S*ex\d\.(py|c)", "FILE", text)
+
+
+@pytest.mark.parametrize("exercise", CLASSROOM_EXERCISES)
+def test_every_c_starter_fails_where_its_python_twin_fails_with_the_same_messages(exercise):
+    python = check(exercise, STARTERS / EXERCISE_FILES[exercise], seed=202)
+    c = check(exercise, STARTERS / C_FILES[exercise], seed=202)
+    assert python.score < python.max_score
+    assert [(r.name, r.passed) for r in c.checks] == [(r.name, r.passed) for r in python.checks]
+    for ours, theirs in zip(c.checks, python.checks, strict=True):
+        in_python = _without_names(ours.message).replace("NULL", "None").replace(" && ", " and ")
+        assert in_python == _without_names(theirs.message)
+
+
+def test_a_check_message_quotes_code_in_the_firmwares_own_language():
+    c = check("ex5", STARTERS / "ex5.c", seed=202)
+    python = check("ex5", STARTERS / "ex5.py", seed=202)
+    assert "CANSendMessage(RTR_ID, NULL, 0" in str(c) and "None" not in str(c)
+    assert "CANSendMessage(RTR_ID, None, 0" in str(python)
+
+
+def _trace(exercise: int, language: str) -> tuple[list[str], list[str]]:
+    room = classroom(exercise, seed=exercise, language=language)
+    room.run(1.0)
+    bus = room.bus
+    return [repr(event) for event in (*bus.trace, *bus.loopback_trace)], [b.glcd.text() for b in room.boards]
+
+
+@pytest.mark.parametrize("exercise", range(1, 7))
+def test_six_c_stations_give_the_bus_trace_of_six_python_stations(exercise):
+    python, c = _trace(exercise, "python"), _trace(exercise, "c")
+    assert len(python[0]) > 10
+    assert c[0] == python[0]
+    assert c[1] == python[1]
+
+
+def test_a_c_station_joins_a_python_classroom_by_its_defined_id(tmp_path):
+    room = classroom(2)
+    firmware = tmp_path / "ex2.c"
+    text = (SOLUTIONS / "ex2.c").read_text()
+    firmware.write_text(text.replace("#define MESSAGE_ID1 0x100", "#define MESSAGE_ID1 0x130"))
+    room.join(firmware, 4)
+    room.run(0.3)
+    assert {e.frame.can_id for e in room.bus.frames() if e.sender == "station4"} == {0x130}
+
+
+# ====================================================================== defines, constants, identity
+
+def test_a_define_replaces_the_files_define_and_constants_lists_them():
+    path = SOLUTIONS / "ex6.c"
+    assert constants(path) == ["MESSAGE_ID1", "RX_Filter0", "RX_Mask0", "RX_Filter2", "RX_Mask1"]
+    module = load_firmware(path, {"MESSAGE_ID1": 0x140})
+    assert (module.MESSAGE_ID1, module.RX_Filter2, module.RX_Filter0) == (0x140, 0x140, 0x088)
+    with pytest.raises(CCompileError, match="has no #define RTR_ID to replace"):
+        load_firmware(path, {"RTR_ID": 0x82})
+
+
+def test_the_station_is_read_from_the_c_files_defines(tmp_path):
+    firmware = tmp_path / "ex5.c"
+    text = (SOLUTIONS / "ex5.c").read_text()
+    firmware.write_text(text.replace("#define RTR_ID      0x81", "#define RTR_ID      0x83"))
+    verdict = check("ex5", firmware, seed=3)
+    assert verdict.score == verdict.max_score and "RTR_ID = 0x083" in str(verdict)
+
+
+def test_the_kits_headers_say_what_the_python_library_says():
+    """The headers are the kit's own text: their constants must be the Python library's, value for value, and
+    p18f8680.h must declare every register and bit the kit models, at its address."""
+    for header, module in (("adc.h", adc), ("timers.h", timers), ("usart.h", usart)):
+        text = headers.header_text(header)
+        defined = dict(re.findall(r"#define (\w+)\s+(0b[01]+)", text))
+        names = [n for n in module.__all__ if isinstance(getattr(module, n), int) and n.isupper()]
+        assert {n: int(v, 0) for n, v in defined.items()} == {n: getattr(module, n) for n in names}
+    can = headers.header_text("CAN18XX8.h")
+    enumerators = dict(re.findall(r"\b(CAN_\w+)\s*=\s*(0b[01]+)", can))
+    assert enumerators and all(getattr(an738, name) == int(value, 0) for name, value in enumerators.items())
+    assert (KIT / "appsim/firmware/c18/include/p18f8680.h").read_text() == headers.device_header()
+    fast = c18_package.header_symbols("p18f8680.h", ())
+    parsed = c18_package.header_symbols("p18f8680.h", (), parsed=True)
+    assert fast == parsed
+    assert {n for n, s in parsed.items() if s.kind == "sfr"} == set(ADDRESSES)
+    assert {n[:-4] for n, s in parsed.items() if s.kind == "bits"} == set(BITFIELDS)
+
+
+def test_can_is_rx_ready_is_the_macro_over_the_registers():
+    text = headers.header_text("CAN18XX8.h")
+    assert "#define CANIsRxReady()          (RXB0CONbits.RXFUL || RXB1CONbits.RXFUL)" in text
+    signature = "BOOL CANReceiveMessage(unsigned long *id, BYTE *Data, BYTE *DataLen, enum CAN_RX_MSG_FLAGS *MsgFlags);"
+    assert signature in text
+
+
+# ====================================================================== C18's semantics
+
+SEMANTICS = r"""
+#include <p18f8680.h>
+#include <stdio.h>
+unsigned char a = 0x80, b = 0x80;
+unsigned int sum8, sum16;
+char c = -1; unsigned char u = 255;
+int equal, quotient = -7 / 2, rest = -7 % 2, product;
+unsigned long big = 0xFFFFFFFF;
+short long medium = 0x7FFFFF;
+char buf[40];
+struct frame { unsigned long id; unsigned char data[8]; unsigned char len; } queue[4], copy;
+int cases[4], loop, calls;
+static int counted(void) { static int n = 0; return ++n; }
+void fill(struct frame *f, unsigned long id) { f->id = id; f->len = 3; f->data[2] = 0x55; }
+int pick(int v) {
+    int r = 0;
+    switch (v) { case 1: r = 10; case 2: r += 20; break; case 3: r = 30; break; default: r = -1; }
+    return r;
+}
+void work(void) {
+    int k;
+    sum8 = a + b;
+    sum16 = (unsigned int)a + b;
+    equal = c == u;
+    product = 200 * 2;
+    big++;
+    medium++;
+    sprintf(buf, "%5d|%-4hhX|%03u|%c|%S|%lu", (int)-42, 0xABu, (unsigned int)7, (char)'Z', "rom", 123456UL);
+    fill(&queue[1], 0x123);
+    copy = queue[1];
+    copy.data[0] = 9;
+    for (k = 0; k < 4; k++) cases[k] = pick(k);
+    k = 0;
+    do { loop += k; k++; if (k == 2) continue; } while (k < 5);
+    calls = counted() + counted();
+}
+"""
+
+
+def test_c18s_integer_semantics_hold():
+    module, process = run_c(SEMANTICS + MAIN_LOOP)
+    assert process.failure is None
+    assert module.sum8 == 0, "C18 adds two unsigned chars in 8 bits (no integer promotion)"
+    assert module.sum16 == 256
+    assert module.equal == 1, "char -1 and unsigned char 255 compare as unsigned chars"
+    assert (module.quotient, module.rest) == (-3, -1), "division truncates toward zero"
+    assert module.product == 400, "200 is an int (a decimal constant is never an unsigned char)"
+    assert (module.big, module.medium) == (0, -0x800000), "32-bit and 24-bit (short long) wrap around"
+    assert bytes_of(module.buf) == b"  -42|AB  |007|Z|rom|123456"
+    assert module.queue[1] == [0x123, [0, 0, 0x55, 0, 0, 0, 0, 0], 3]
+    assert module.copy[1][0] == 9 and module.queue[1][1][0] == 0, "a struct is assigned by value"
+    assert module.cases == [-1, 30, 20, 30], "case 1 falls through into case 2"
+    assert module.loop == 10 and module.calls == 3
+
+
+def test_with_minus_oi_integer_promotions_hold():
+    module, _ = run_c(SEMANTICS + MAIN_LOOP, options=("-Oi",))
+    assert module.sum8 == 256
+
+
+def test_a_constant_takes_the_smallest_type():
+    module, _ = run_c("""
+        #include <p18f8680.h>
+        int a, b, c;
+        void work(void) { a = 0x10 * 0x10; b = 16 * 16; c = 0x100 * 2; }
+    """ + MAIN_LOOP)
+    assert (module.a, module.b, module.c) == (0, 0, 0x200), "0x10 and 16 are chars: their product is a char"
+
+
+def test_globals_are_initialised_again_at_every_reset_and_main_is_called_again_when_it_returns():
+    source = """
+        #include <p18f8680.h>
+        int runs = 0;
+        unsigned char started;
+        void main(void) { runs++; started = 1; Nop(); if (runs == 3) { while (1) Nop(); } }
+    """
+    module = load_source("reset.c", source.encode())
+    sim = Simulator()
+    mcu = PIC18F8680(sim)
+    mcu.run(module.main)
+    sim.run_for(0.001)
+    assert module.runs == 3, "C18's startup calls main() again when it returns, without initialising again"
+    mcu.run(module.main)            # a reset: C startup runs again
+    sim.run_for(0.001)
+    assert module.runs == 3
+
+
+def test_reset_restarts_the_c_program_from_its_startup():
+    module, process = run_c("""
+        #include <p18f8680.h>
+        int boots = 0, total = 0;
+        void main(void) { total++; boots++; Nop(); if (total < 3) Reset(); while (1) Nop(); }
+    """)
+    assert process.failure is None and module.boots == 1
+
+
+# ====================================================================== C18's traps, each with the verdict it deserves
+
+def _edited(exercise: str, *edits: tuple[str, str]) -> str:
+    text = (SOLUTIONS / C_FILES[exercise]).read_text()
+    for old, new in edits:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    return text
+
+
+SHIFT_NO_CAST = ('sprintf(LCD, "A/D    %4d", ((int)RxData[3] << 8) | RxData[4]);',
+                 'adc = (RxData[3] << 8) | RxData[4];\n                    sprintf(LCD, "A/D    %4d", adc);')
+
+
+@pytest.mark.parametrize("options, passes", [((), False), (("-Oi",), True)])
+def test_the_high_byte_lost_without_a_cast_shows_on_lcd_line_3_under_c18s_default(tmp_path, options, passes):
+    firmware = tmp_path / "ex3.c"
+    firmware.write_text(_edited("ex3", SHIFT_NO_CAST, ("char LCD[22];", "char LCD[22];\nunsigned int adc;")))
+    verdict = check("ex3", firmware, seed=202, c_options=options)       # the master's A/D is above 255 there
+    lcd = next(r for r in verdict.checks if r.name == check_names("ex3")[2])
+    assert lcd.passed == passes, str(verdict)
+    if not passes:
+        assert "Line 3" in lcd.message or "line 3" in lcd.message
+
+
+def test_sprintf_x_of_a_one_byte_constant_is_a_run_time_error_naming_the_c_line(tmp_path):
+    firmware = tmp_path / "ex5.c"
+    firmware.write_text(_edited("ex5", ("(unsigned int)RTR_ID", "RTR_ID")))
+    verdict = check("ex5", firmware, seed=202)
+    message = verdict.checks[0].message
+    line = next(n for n, text in enumerate(firmware.read_text().splitlines(), 1) if '"TX ID  0x%03X RTR"' in text)
+    assert verdict.score == 0 and verdict.fault == "exception"
+    assert f"line {line} of ex5.c" in message and "%03X reads an int (2 bytes)" in message
+    assert "0x81 is a constant of type unsigned char (1 byte)" in message and "%03hhX" in message
+
+
+def test_putsglcd_with_a_rom_literal_is_refused_at_its_line(tmp_path):
+    firmware = tmp_path / "ex1.c"
+    firmware.write_text(_edited("ex1", ('putrsGLCD("EX1 LOOPBACK");', 'putsGLCD("EX1 LOOPBACK");')))
+    verdict = check("ex1", firmware, seed=202)
+    message = verdict.checks[0].message
+    line = next(n for n, text in enumerate(firmware.read_text().splitlines(), 1) if 'putsGLCD("EX1' in text)
+    assert verdict.fault == "load" and f"ex1.c:{line}:" in message
+    assert "in program memory" in message and "use putrsGLCD()" in message
+
+
+def test_forgetting_rxful_0_after_reading_rxb0_by_its_registers_freezes_what_the_node_sees(tmp_path):
+    direct = ("            CANReceiveMessage(&RX_ID1, RxData, &DataLen, &CANMessageFlag);\n"
+              "            setcurGLCD(4, 1);\n"
+              "            if (CANMessageFlag & CAN_RX_RTR_FRAME) {",
+              "            RX_ID1 = ((unsigned int)RXB0SIDH << 3) | (RXB0SIDL >> 5);\n"
+              "            DataLen = RXB0DLC & 0x0F;\n"
+              "            RxData[3] = RXB0D3;\n"
+              "            RxData[4] = RXB0D4;\n"
+              "            CANMessageFlag = RXB0DLCbits.RXRTR ? CAN_RX_RTR_FRAME : 0;\n"
+              "            RXB0CONbits.RXFUL = 0;\n"
+              "            setcurGLCD(4, 1);\n"
+              "            if (CANMessageFlag & CAN_RX_RTR_FRAME) {")
+    good, forgot = tmp_path / "good" / "ex3.c", tmp_path / "forgot" / "ex3.c"
+    forgetting = (direct[0], direct[1].replace("            RXB0CONbits.RXFUL = 0;\n", ""))
+    for path, edit in ((good, direct), (forgot, forgetting)):
+        path.parent.mkdir()
+        path.write_text(_edited("ex3", edit, ("if (CANIsRxReady()) {", "if (RXB0CONbits.RXFUL) {")))
+    assert check("ex3", good, seed=202).score == check("ex3", good, seed=202).max_score
+    verdict = check("ex3", forgot, seed=202)
+    failed = {r.name for r in verdict.failed()}
+    assert check_names("ex3")[2] in failed, str(verdict)       # the LCD never follows the master's A/D
+
+
+def test_an_out_parameter_without_its_ampersand_is_refused_in_cs_words(tmp_path):
+    firmware = tmp_path / "ex2.c"
+    firmware.write_text(_edited("ex2", ("CANReceiveMessage(&RX_ID1,", "CANReceiveMessage(RX_ID1,")))
+    verdict = check("ex2", firmware, seed=202)
+    message = verdict.checks[0].message
+    assert verdict.fault == "load"
+    assert "argument 1 of CANReceiveMessage() (id) is unsigned long *" in message
+    assert "RX_ID1 is a unsigned long, not an address: pass its address, &RX_ID1" in message
+
+
+def test_an_out_parameter_of_the_wrong_size_is_refused():
+    error = c_error("""
+        #include "CAN18XX8.h"
+        unsigned int id; BYTE data[8], len; enum CAN_RX_MSG_FLAGS flags;
+        void main(void) { CANReceiveMessage(&id, data, &len, &flags); }
+    """)
+    assert error.line == 4
+    assert "points to unsigned long (4 bytes), but &id points to unsigned int (2 bytes)" in str(error)
+
+
+def test_an_index_out_of_range_is_reported_at_its_c_line():
+    module, process = run_c("""
+        #include <p18f8680.h>
+        unsigned char data[8];
+        unsigned char i;
+        void work(void) {
+            for (i = 0; i <= 8; i++)
+                data[i] = i;
+        }
+    """ + MAIN_LOOP, name="oob.c")
+    fault = board_fault(process)
+    assert fault is not None and fault.kind == "exception"
+    assert "at line 7 of oob.c (`data[i] = i;`)" in fault.message
+    assert "data[8] is outside data, which has 8 elements (0..7)" in fault.message
+
+
+def test_a_local_read_before_it_is_set_is_reported():
+    _, process = run_c("""
+        #include <p18f8680.h>
+        int out;
+        void work(void) { int x; out = x + 1; }
+    """ + MAIN_LOOP, name="unset.c")
+    fault = board_fault(process)
+    assert fault is not None and "x is read before anything was stored in it" in fault.message
+
+
+def test_sprintf_past_the_end_of_its_buffer_is_reported():
+    _, process = run_c("""
+        #include <p18f8680.h>
+        #include <stdio.h>
+        char line[8];
+        void work(void) { sprintf(line, "A/D    %4d", (int)1023); }
+    """ + MAIN_LOOP)
+    fault = board_fault(process)
+    assert fault is not None and "sprintf writes 12 bytes (the NUL included) into line, which has room for 8" \
+        in fault.message
+
+
+# ====================================================================== errors in C's words; what the kit refuses
+
+@pytest.mark.parametrize("source, line, words", [
+    ("#include <p18f8680.h>\nvoid main(void) {\n    int x = 1\n    x = 2;\n}\n", 4, "is a ';' missing"),
+    ("void main(void) {\n    undefined_thing = 3;\n}\n", 2, "undefined_thing is not declared"),
+    ("void main(void) {\n    RXB0CONbits.RXFUL = 0;\n}\n", 2, "#include <p18f8680.h> declares the registers"),
+    ("#include <p18f8680.h>\nvoid main(void) {\n    RXB0CONbits.FULL = 0;\n}\n", 3,
+     "RXB0CONbits has no bit or field named FULL"),
+    ("void main(void) {\n    _asm nop _endasm\n}\n", 2, "inline assembly"),
+    ("void main(void) {\nagain:\n    goto again;\n}\n", 2, "goto and labels are not supported"),
+    ("void f(void) {}\nvoid main(void) {\n    void (*p)(void) = f;\n}\n", 3, "function pointers are not supported"),
+    ("float volts;\nvoid main(void) {}\n", 1, "floating point"),
+    ("union u { char a; int b; } x;\nvoid main(void) {}\n", 1, "unions are not supported"),
+    ("#pragma interrupt high_isr\nvoid high_isr(void) {}\nvoid main(void) {}\n", 1, "issue 25"),
+    ("#pragma interruptlow low_isr\nvoid low_isr(void) {}\nvoid main(void) {}\n", 1, "no interrupts yet"),
+    ("#pragma code high_vector=0x08\nvoid v(void) {}\n#pragma code\nvoid main(void) {}\n", 1, "interrupt vector"),
+    ('#include "/etc/hostname"\nvoid main(void) {}\n', 1, "includes only its own headers"),
+    ('#include "../secrets.h"\nvoid main(void) {}\n', 1, "includes only its own headers"),
+    ("#include __FILE__\nvoid main(void) {}\n", 1, "includes only its own headers"),
+    ("#error not finished\nvoid main(void) {}\n", 1, "#error not finished"),
+    ("int x;\n", 0, "there is no main()"),
+])
+def test_an_error_names_the_c_line_and_what_is_wrong(source, line, words):
+    error = c_error(source)
+    assert error.line == line, str(error)
+    assert words in str(error), str(error)
+    assert str(error).startswith(f"t.c:{line}:" if line else "t.c: ")
+
+
+def test_pragmas_of_c18_are_accepted_and_0b_constants_and_nop_clrwdt_work():
+    module, process = run_c("""
+        #include <p18f8680.h>
+        #pragma config OSC = HSPLL, WDT = OFF, LVP = OFF
+        #pragma romdata
+        rom const char banner[] = "APP023";
+        #pragma udata
+        unsigned char mask = 0b10100101;
+        #pragma code
+        void work(void) { Nop(); ClrWdt(); }
+    """ + MAIN_LOOP)
+    assert process.failure is None and module.mask == 0xA5 and bytes(module.banner[:6]) == b"APP023"
+
+
+def test_writing_to_a_rom_array_is_refused():
+    error = c_error('rom const char banner[] = "X";\nvoid main(void) {\n    banner[0] = 1;\n}\n')
+    assert error.line == 3 and "program memory" in str(error)
+
+
+def test_no_python_traceback_reaches_a_student_from_a_broken_c_file(tmp_path):
+    for text in ("void main(void) { int x = ; }", "}}}", "\x00\x01\x02", "void main(void) { while (1) { int"):
+        firmware = tmp_path / "ex1.c"
+        firmware.write_bytes(text.encode())
+        verdict = check("ex1", firmware, seed=1)
+        assert verdict.fault == "load", str(verdict)
+        assert "Traceback" not in str(verdict)
+
+
+# ====================================================================== hostile input, each a named fault in time
+
+@pytest.mark.parametrize("source, words", [
+    ("#define A0 x x x x x x x x\n" + "".join(f"#define A{n} A{n - 1} A{n - 1} A{n - 1} A{n - 1}\n"
+                                              for n in range(1, 24)) + "int y = A23;\nvoid main(void) {}\n",
+     "macro bomb"),
+    ("int x = " + "(" * 5000 + "1" + ")" * 5000 + ";\nvoid main(void) {}\n", "nest more than"),
+    ("void main(void) {\n" + "if (1) {\n" * 200 + "}\n" * 200 + "}\n", "nest more than"),
+    ("".join(f"int v{n} = {n};\n" for n in range(60_000)) + "void main(void) {}\n", "characters"),
+    ('#include "t.c"\nvoid main(void) {}\n', "includes only its own headers"),
+])
+def test_hostile_c_is_refused_by_a_named_limit_quickly(source, words):
+    started = time.monotonic()
+    error = c_error(source)
+    assert words in str(error), str(error)[:500]
+    assert time.monotonic() - started < 10
+
+
+def test_a_translated_file_is_cached_by_its_content_defines_and_options():
+    source = (SOLUTIONS / "ex2.c").read_bytes()
+    first = c18_package.translate("cache.c", source, {}, ())
+    assert c18_package.translate("cache.c", source, {}, ()) is first
+    assert c18_package.translate("cache.c", source, {"MESSAGE_ID1": 0x110}, ()) is not first
+    assert c18_package.translate("cache.c", source, {}, ("-Oi",)) is not first
+    assert c18_package.translate("cache.c", source + b"\n", {}, ()) is not first
+    one = load_source("cache.c", source)
+    other = load_source("cache.c", source)
+    assert one is not other and one.TxData is not other.TxData, "each load is a fresh module with its own globals"
