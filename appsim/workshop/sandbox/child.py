@@ -219,7 +219,7 @@ def main(settings: dict[str, Any], read_fd: int, write_fd: int) -> None:
     mcu = RemoteMCU(channel)
     RUNNING_MCU.set(mcu)
     try:
-        module = load_source(path, source)
+        module = load_source(path, source, c_options=settings.get("c_options", ()))
     except FirmwareError as error:
         mcu.report(wire.LOAD_FAILED, str(error))
         return

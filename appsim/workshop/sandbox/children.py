@@ -40,8 +40,12 @@ class Limits:
     memory_mb: int = 256
     file_mb: int = 16
     wall_time_s: float | None = None
+    c_options: tuple[str, ...] = ()         # not a limit: C18's command-line options (-Oi) a .c firmware is built with
 
     WALL_PER_CPU: ClassVar[int] = 10
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "c_options", tuple(self.c_options))     # from JSON, a list
 
     @property
     def wall_s(self) -> float:
@@ -70,7 +74,7 @@ class Zygote:
         self.cpu_limit_s = int(limits.time_s) + 2   # each child's RLIMIT_CPU (SIGXCPU); SIGKILL a second later
         settings = {"memory_mb": limits.memory_mb, "file_mb": limits.file_mb, "cpu_s": self.cpu_limit_s,
                     "seccomp": seccomp_program().hex() if self.isolated else "", "control_fd": theirs.fileno(),
-                    "path": import_path()}
+                    "path": import_path(), "c_options": list(limits.c_options)}
         argv = [sys.executable, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
         passed = [theirs.fileno()]
         if isolation is not None:
