@@ -52,7 +52,7 @@ MAIN_LOOP = "\nvoid main(void) { work(); while (1) { Nop(); } }\n"
 # ====================================================================== the workshop in C
 
 @pytest.mark.parametrize("seed", [202, 7, 31337])
-@pytest.mark.parametrize("exercise", CLASSROOM_EXERCISES)
+@pytest.mark.parametrize("exercise", [*CLASSROOM_EXERCISES, "demo1"])
 def test_every_c_solution_gets_full_marks(exercise, seed):
     verdict = check(exercise, SOLUTIONS / C_FILES[exercise], seed=seed)
     assert verdict.score == verdict.max_score, str(verdict)
@@ -71,6 +71,19 @@ def test_every_c_starter_fails_where_its_python_twin_fails_with_the_same_message
     for ours, theirs in zip(c.checks, python.checks, strict=True):
         in_python = _without_names(ours.message).replace("NULL", "None").replace(" && ", " and ")
         assert in_python == _without_names(theirs.message)
+
+
+def test_the_demo1_c_starter_fails_where_the_python_starter_fails():
+    python = check("demo1", STARTERS / "demo1_monitor.py", seed=202)
+    c = check("demo1", STARTERS / "demo1_monitor.c", seed=202)
+    assert [(r.name, r.passed) for r in c.checks] == [(r.name, r.passed) for r in python.checks]
+    assert c.score == python.score == 1
+
+
+def test_the_demo1_c_solution_prints_what_the_python_solution_prints():
+    verdicts = [str(check("demo1", SOLUTIONS / name, seed=9)) for name in ("demo1_monitor.py", "demo1_monitor.c")]
+    assert _without_names(verdicts[0].replace("demo1_monitor", "ex1")) == \
+        _without_names(verdicts[1].replace("demo1_monitor", "ex1"))
 
 
 def test_a_check_message_quotes_code_in_the_firmwares_own_language():
