@@ -128,7 +128,8 @@ def what_it_saw(process: Process, frame: FrameType, ran: str, asleep: bool) -> s
         return (f"{ran}, more than {RECURSION_DEPTH} calls deep in {frame.f_code.co_name}(): a recursion that "
                 "does not end. The PIC18's return stack holds 31 calls; loop in main() instead of calling a "
                 "function from itself")
-    return (f"{ran}: an endless loop such as `while True: pass`. A real board would hang there too; poll a "
+    endless = "`while(1);`" if str(process.filename or "").lower().endswith(".c") else "`while True: pass`"
+    return (f"{ran}: an endless loop such as {endless}. A real board would hang there too; poll a "
             "register in the loop (e.g. CANIsRxReady()) or end it")
 
 
