@@ -212,8 +212,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     board = commands.add_parser(
         "board", help="run one firmware file on one simulated board",
-        description="Run FIRMWARE (a .py file with main(), or a .c file) on one APP023 board (station 1) and print what "
-                    "it sent and received and its LCD. Alone on the simulated bus a Normal-mode node gets "
+        description="Run FIRMWARE (a .py file with main(), or a .c file) on one APP023 board (station 1) and print "
+                    "what it sent and received and its LCD. Alone on the simulated bus a Normal-mode node gets "
                     "no ACK; with --interface/--channel it joins that bus in real time.")
     board.add_argument("firmware", metavar="FIRMWARE", help="path of the firmware file, e.g. exercises/ex1.py")
     board.add_argument("--potentiometer", type=_potentiometer, default=666,

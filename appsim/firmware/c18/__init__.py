@@ -7,10 +7,13 @@ firmware runs (see docs/c-firmware.md for the route, the C18 semantics modelled 
 from __future__ import annotations
 
 import ast
+import contextlib
 import hashlib
 import re
+import signal
+import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import CodeType, ModuleType
@@ -30,6 +33,7 @@ OPTIONS = {"-Oi": "integer promotions, as ISO C has them (C18's default has none
            "-k": "plain char is unsigned (C18's default: signed)"}
 TRANSLATION_SECONDS = 5.0           # within every exercise's budget (a translation takes 10 to 50 ms)
 MAX_NESTING = 60                    # ( [ { nested in the file
+MAX_LINES = 10_000                  # of the preprocessed file (the workshop's biggest, Demo1's, has 500)
 _CACHE_SIZE = 64
 
 
@@ -117,7 +121,8 @@ def translate(filename: str, source: bytes, defines: Mapping[str, int], options:
     key = (hashlib.sha256(filename.encode() + b"\0" + source).hexdigest(), tuple(sorted(defines.items())), options)
     found = _translated.get(key)
     if found is None:
-        found = _translate(filename, source, defines, options)
+        with _cpu_deadline(filename):
+            found = _translate(filename, source, defines, options)
         if len(_translated) >= _CACHE_SIZE:
             _translated.pop(next(iter(_translated)))
         _translated[key] = found
@@ -129,6 +134,48 @@ def translate(filename: str, source: bytes, defines: Mapping[str, int], options:
 
 
 _loads = iter(range(1, 1 << 62))
+
+
+class _OutOfTime(Exception):
+    pass
+
+
+@contextlib.contextmanager
+def _cpu_deadline(filename: str) -> Iterator[None]:
+    """Stop a translation that runs away (a macro bomb's arguments, a monstrous expression) after
+    TRANSLATION_SECONDS of CPU time, wherever it is: a CPU-time timer (SIGVTALRM), in the main thread. Elsewhere the
+    translator's own checks of the time stop it, between its steps."""
+    if (not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGVTALRM) not in (signal.SIG_DFL, None)):
+        try:
+            yield
+        except MemoryError:
+            raise CCompileError("the translation ran out of memory: a macro that expands without end (a macro "
+                                "bomb)?", filename) from None
+        return
+
+    def expired(signum: int, frame: object) -> None:
+        raise _OutOfTime
+
+    signal.signal(signal.SIGVTALRM, expired)
+    try:
+        signal.setitimer(signal.ITIMER_VIRTUAL, TRANSLATION_SECONDS)
+    except OSError:                     # no CPU-time timer here: the translator's own checks remain
+        signal.signal(signal.SIGVTALRM, signal.SIG_DFL)
+        yield
+        return
+    try:
+        yield
+    except MemoryError:
+        raise CCompileError("the translation ran out of memory: a macro that expands without end (a macro bomb)?",
+                            filename) from None
+    except _OutOfTime:
+        raise CCompileError(f"the translation ran out of its time ({TRANSLATION_SECONDS:g} s of CPU; a firmware takes "
+                            "a few hundredths): a macro that expands without end (a macro bomb), or an expression "
+                            "thousands of terms long?", filename) from None
+    finally:
+        signal.setitimer(signal.ITIMER_VIRTUAL, 0)
+        signal.signal(signal.SIGVTALRM, signal.SIG_DFL)
 
 
 def _identifier(text: str) -> str:
@@ -145,6 +192,9 @@ def _translate(filename: str, source: bytes, defines: Mapping[str, int], options
             raise CCompileError(f"-D {define}: {name} has no #define {define} to replace. It defines "
                                 f"{', '.join(done.defines) or 'no constants'}; a -D replaces one of those, as the "
                                 "C18 command line's -D replaces a #define.")
+    if done.text.count("\n") > MAX_LINES:
+        raise CCompileError(f"the file has more than {MAX_LINES:,} lines of C (after the preprocessor): a firmware "
+                            "has a few hundred", filename)
     _refuse_what_cannot_parse(done.text, filename)
     symbols: dict[str, Sym] = {}
     for header in done.headers:
@@ -210,8 +260,10 @@ def _parse_error(error: ParseError, filename: str, text: str) -> CCompileError:
     hint = ""
     if "before" in what and line > 1:
         previous = text.splitlines()[line - 2].rstrip()
-        ends = (";", "{", "}", ",", ")", "/", "*")
-        if previous and not previous.endswith(ends) and not previous.lstrip().startswith("#"):
+        ends = (";", "{", "}", ",", "/", "*", "(", "&&", "||", "&", "|", "+", "-", "=", "?", ":")
+        control = previous.lstrip().split("(")[0].strip() in ("if", "while", "for", "switch", "else if")
+        if (previous and not previous.endswith(ends) and not previous.lstrip().startswith("#")
+                and not (previous.endswith(")") and control)):
             hint = " (is a ';' missing at the end of the line before?)"
     shown = f": `{source_line.strip()}`" if source_line.strip() else ""
     return CCompileError(f"{what}{hint}{shown}", filename, line, column)

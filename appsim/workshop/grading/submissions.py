@@ -286,8 +286,8 @@ def _may_hold_exercise(name: str) -> bool:
 
 def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, tuple[str, bytes] | Fault]:
     """The exercise of a notebook (its metadata {"appsim": {"exercise": ...}}, else its name) and its firmware: the
-    code of its cells tagged `firmware` (IPython magics such as `%%writefile ex1.py` become comments), as the file it
-    would be (ex1.py, or ex1.c), or why there is none.
+    code of its cells tagged `firmware` (`firmware-c` for the C cell; IPython magics such as `%%writefile ex1.py`
+    become comments), as the file it would be (ex1.py, or ex1.c), or why there is none.
 
     A notebook with a firmware cell in each language grades the one its `FIRMWARE = "ex1.c"` cell names (the file
     its Station and check cells run); without that choice, the Python one."""
@@ -305,7 +305,7 @@ def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, tuple[st
                 continue
             source = cell.get("source", "")
             source = "".join(source) if isinstance(source, list) else str(source)
-            if "firmware" in cell.get("metadata", {}).get("tags", []):
+            if {"firmware", "firmware-c"} & set(cell.get("metadata", {}).get("tags", [])):
                 language = _cell_language(source)
                 comment = "//" if language == "c" else "#"
                 by_language.setdefault(language, []).append("\n".join(

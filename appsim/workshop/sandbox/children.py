@@ -44,14 +44,12 @@ class Limits:
 
     WALL_PER_CPU: ClassVar[int] = 10
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "c_options", tuple(self.c_options))     # from JSON, a list
-
     @property
     def wall_s(self) -> float:
         return self.wall_time_s if self.wall_time_s is not None else self.WALL_PER_CPU * self.time_s
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "c_options", tuple(self.c_options))     # from JSON, a list
         if not (self.time_s > 0 and self.stall_s > 0 and self.memory_mb > 0 and self.file_mb > 0 and self.wall_s > 0):
             raise ValueError(f"sandbox limits are positive numbers; got {self}")
 
