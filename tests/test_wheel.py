@@ -96,3 +96,18 @@ def test_grade_grades_a_class_with_the_wheel(installed, elsewhere):
     assert result.returncode == 0, result.stdout + result.stderr
     assert "alice" in result.stdout and "Traceback" not in result.stderr
     assert (elsewhere / "class.grades.jsonl").exists()
+
+
+def test_the_wheel_holds_the_c_headers_starters_and_solutions_and_checks_c(installed, elsewhere):
+    listed = subprocess.run([str(installed / "python"), "-c",
+                             "from importlib import resources; from appsim.workshop.course import solution, starter; "
+                             "headers = resources.files('appsim.firmware.c18') / 'include'; "
+                             "print(sorted(p.name for p in headers.iterdir() if p.name.endswith('.h'))); "
+                             "print(solution('ex1', 'c').read_text(), end='')"],
+                            cwd=elsewhere, capture_output=True, text=True, check=True).stdout
+    names, _, source = listed.partition("\n")
+    assert names == str(sorted(["p18f8680.h", "CAN18XX8.h", "adc.h", "timers.h", "usart.h", "delays.h", "stdio.h",
+                                "string.h", "stdlib.h", "APP023_GLCD.h"]))
+    (elsewhere / "ex1.c").write_text(source)
+    result = appsim(installed, elsewhere, "check", "ex1", "ex1.c")
+    assert result.returncode == 0 and result.stdout.startswith("EX1: 5/5"), result.stdout + result.stderr

@@ -216,7 +216,10 @@ def _translate(filename: str, source: bytes, defines: Mapping[str, int], options
     constants_ = _define_values(done.expanded, translator, filename)
     module, namespace = _module(translator, filename)
     try:
-        code = compile(module, filename, "exec")
+        try:
+            code = compile(module, filename, "exec")
+        except TypeError:               # a node the translator left without a line: its parent's (a safety net)
+            code = compile(ast.fix_missing_locations(module), filename, "exec")
     except SyntaxError as error:
         raise CCompileError(f"the kit could not translate this ({error.msg}): nest fewer blocks or simplify it",
                             filename, error.lineno or 0) from None
@@ -347,8 +350,7 @@ def _module(tr: Translator, filename: str) -> tuple[ast.Module, dict[str, Any]]:
     _place(main, main_line, force=True)
     run_startup = ast.Expr(ast.Call(ast.Name("__c_startup", ast.Load()), [], []))
     _place(run_startup, first_line)
-    module = ast.Module([*body, startup, main, run_startup], [])
-    return module, namespace
+    return ast.Module([*body, startup, main, run_startup], []), namespace
 
 
 def _no_arguments() -> ast.arguments:

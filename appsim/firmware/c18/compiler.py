@@ -29,6 +29,9 @@ MAX_STATEMENTS = 20_000             # statements in one file
 MAX_LOOP_NESTING = 18               # Python allows 20 nested blocks; the translation adds one for a switch
 
 
+_PLACED = (ast.expr, ast.stmt, ast.excepthandler, ast.arg, ast.keyword)
+
+
 class _Refused(Exception):
     """Raised inside the translator; turned into a CCompileError at the C node."""
 
@@ -121,12 +124,15 @@ class Translator:
             line, column = 1, 0
         text = self.lines[line - 1] if 0 < line <= len(self.lines) else ""
         end = max(len(text.encode("utf-8")), column + 1)
-        for item in py if isinstance(py, list) else [py]:
-            for sub in ast.walk(item):
-                if isinstance(sub, (ast.expr, ast.stmt, ast.excepthandler, ast.arg, ast.keyword)):
-                    if getattr(sub, "lineno", None) is None:
-                        sub.lineno, sub.col_offset = line, column
-                        sub.end_lineno, sub.end_col_offset = line, end
+        stack = list(py) if isinstance(py, list) else [py]
+        while stack:                    # a node placed before was placed with everything below it: not again
+            sub = stack.pop()
+            if isinstance(sub, _PLACED):
+                if getattr(sub, "lineno", None) is not None:
+                    continue
+                sub.lineno, sub.col_offset = line, column
+                sub.end_lineno, sub.end_col_offset = line, end
+            stack.extend(ast.iter_child_nodes(sub))
         return py
 
     def tick(self, node: Any) -> None:
@@ -1673,12 +1679,15 @@ def _copy(node: Any) -> Any:
     return _strip_walrus(copy.deepcopy(node))
 
 
-def _strip_walrus(node: Any) -> Any:
+class _StripWalrus(ast.NodeTransformer):
     """In a copy, `(t := e)` has done its work already: it becomes `t`."""
-    class Strip(ast.NodeTransformer):
-        def visit_NamedExpr(self, n: ast.NamedExpr) -> ast.expr:
-            return ast.Name(n.target.id, ast.Load())
-    return Strip().visit(node)
+
+    def visit_NamedExpr(self, node: ast.NamedExpr) -> ast.expr:
+        return ast.copy_location(ast.Name(node.target.id, ast.Load()), node)
+
+
+def _strip_walrus(node: Any) -> Any:
+    return _StripWalrus().visit(node)
 
 
 def _name(identifier: str, store: bool = False) -> ast.Name:
