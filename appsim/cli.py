@@ -189,6 +189,8 @@ def _c_option(parser: argparse.ArgumentParser) -> None:
                         help="an MPLAB C18 option for .c firmware, as its command line takes it: --c-option=-Oi "
                              "(integer promotions; C18's default has none), --c-option=-k (plain char unsigned); "
                              "may be given more than once")
+    parser.add_argument("-Oi", dest="c_option", action="append_const", const="-Oi",
+                        help="the same as --c-option=-Oi, as C18's command line writes it")
 
 
 def build_parser() -> argparse.ArgumentParser:

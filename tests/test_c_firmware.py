@@ -525,3 +525,19 @@ def test_a_c_firmware_that_loops_without_touching_a_register_is_stopped_at_its_c
     fault = board_fault(process)
     assert fault is not None and fault.kind == "stalled", fault
     assert "at line 5 of stuck.c (`while (1);`)" in fault.message and "`while(1);`" in fault.message
+
+
+def test_the_command_line_takes_c18s_minus_oi_as_c18s_command_line_does(tmp_path):
+    import subprocess
+    import sys
+
+    firmware = tmp_path / "ex3.c"
+    firmware.write_text(_edited("ex3", SHIFT_NO_CAST, ("char LCD[22];", "char LCD[22];\nunsigned int adc;")))
+    runs = {flags: subprocess.run([sys.executable, "-m", "appsim", "check", "ex3", str(firmware), "--seed", "202",
+                                   *flags], capture_output=True, text=True, timeout=120, cwd=tmp_path)
+            for flags in ((), ("-Oi",), ("--c-option=-Oi",))}
+    assert runs[()].returncode == 1 and "FAIL  LCD shows the master's A/D and ID" in runs[()].stdout
+    assert runs["-Oi",].returncode == 0 and runs["--c-option=-Oi",].returncode == 0, runs["-Oi",].stdout
+    wrong = subprocess.run([sys.executable, "-m", "appsim", "check", "ex3", str(firmware), "--c-option=-O2"],
+                           capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert wrong.returncode == 2 and "not a C18 option the kit knows" in wrong.stderr

@@ -63,7 +63,7 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
         submissions = find_submissions([Path(p) for p in paths])
         if gradescope_path is not None:
             check_output(gradescope_path, "the Gradescope output (--gradescope)", folder=len(submissions) > 1)
-        kit = kit_version()
+        kit = kit_version() + "".join(f" {option}" for option in limits.c_options)   # C18's -Oi grades otherwise
         book = ResultsFile(results)
         try:
             previous = book.records()
