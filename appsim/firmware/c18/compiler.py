@@ -10,7 +10,7 @@ from __future__ import annotations
 import ast
 import copy
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -176,9 +176,11 @@ class Translator:
                 "enum": "an enumeration constant", "typedef": "a type name"}.get(sym.kind, sym.ctype.spelled())
 
     def py_name(self, name: str) -> str:
+        """The Python name of a C identifier: itself, unless Python or the translation uses it (a C name with two
+        leading underscores is the implementation's, in C as here)."""
+        base = name if name not in _PY_RESERVED and not name.startswith("__") else f"{name}_"
         if self.function is None:
-            return name if name not in _PY_RESERVED else f"{name}_"
-        base = name if name not in _PY_RESERVED else f"{name}_"
+            return base
         candidate, n = base, 1
         while candidate in self.locals_used:
             n += 1
@@ -415,10 +417,21 @@ class Translator:
         self.startup.append(self.at(decl, ast.Assign([_name(sym.py, True)], self.boxed(sym, value))))
 
     def _non_constant(self, init: Any) -> bool:
-        for node in _walk(init):
-            if isinstance(node, c_ast.FuncCall) or (isinstance(node, c_ast.ID) and (
-                    (sym := self.lookup(node.name)) is not None and sym.kind in ("var", "sfr", "bits"))):
+        """Whether an initial value needs the program running: a call, a variable's or a register's value (an
+        array's or a variable's address is a constant, as in C)."""
+        stack = [init]
+        while stack:
+            node = stack.pop()
+            if isinstance(node, c_ast.UnaryOp) and node.op == "&":
+                continue
+            if isinstance(node, c_ast.FuncCall):
                 return True
+            if isinstance(node, c_ast.ID):
+                sym = self.lookup(node.name)
+                if sym is not None and (sym.kind in ("sfr", "bits") or sym.kind == "var"
+                                        and not isinstance(sym.ctype, Array)):
+                    return True
+            stack.extend(child for _, child in node.children())
         return False
 
     def boxed(self, sym: Sym, value: ast.expr) -> ast.expr:
@@ -1716,12 +1729,6 @@ def _first_bit(sym: Sym) -> str:
 
 def _no_bit(bits: str, bit: str, fields: dict[str, tuple[int, int]]) -> str:
     return f"{bits} has no bit or field named {bit}; it has {', '.join(fields)}"
-
-
-def _walk(node: Any) -> Iterator[Any]:
-    yield node
-    for _, child in node.children():
-        yield from _walk(child)
 
 
 def _addressed(tree: Any) -> set[str]:
