@@ -271,8 +271,7 @@ class Translator:
             raise self.refuse(node, "unions are not supported by the kit's C (except the registers' NAMEbits of "
                                     "p18f8680.h): use a struct, or shifts and masks")
         if isinstance(node, c_ast.Enum):
-            self.enum_values(node)
-            return T.INT
+            return self.enum_type(node)
         raise self.refuse(node, f"this type ({type(node).__name__}) is not supported by the kit's C")
 
     def struct_type(self, node: c_ast.Struct) -> Struct:
@@ -321,17 +320,31 @@ class Translator:
         self.struct_keys += 1
         return self.struct_keys
 
-    def enum_values(self, node: c_ast.Enum) -> None:
+    def enum_type(self, node: c_ast.Enum) -> Int:
+        """An enumeration's type: the smallest of char, unsigned char, int, unsigned int that holds every value of
+        it (an `enum CAN_RX_MSG_FLAGS` is one byte, as a BYTE is); its enumerators are int constants."""
+        key = f"enum {node.name}" if node.name else ""
         if node.values is None:
-            return
-        value = 0
+            known = self.lookup(key) if key else None
+            if known is None:
+                raise self.refuse(node, f"enum {node.name} is not declared (its values come first)")
+            assert isinstance(known.ctype, Int)
+            return known.ctype
+        value, values = 0, []
         for item in node.values.enumerators:
             if item.value is not None:
                 value = self.constant(item.value, "an enumeration value")
             if not T.INT.low <= value <= T.UINT.high:
                 raise self.refuse(item, f"{item.name} = {value} does not fit an int (C18's enumerations)")
             self.declare(Sym(item.name, "enum", T.INT, value=value), item)
+            values.append(value)
             value += 1
+        low, high = min(values, default=0), max(values, default=0)
+        ctype = next(t for t in (T.CHAR, T.UCHAR, T.INT, T.UINT) if t.low <= low and high <= t.high)
+        ctype = replace(ctype, name=f"enum {node.name}" if node.name else "enum")
+        if key:
+            self.declare(Sym(key, "enumtag", ctype), node)
+        return ctype
 
     # ================================================================== constants
     def constant(self, node: Any, what: str) -> int:
