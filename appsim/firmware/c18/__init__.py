@@ -183,9 +183,14 @@ def _identifier(text: str) -> str:
 
 
 def _translate(filename: str, source: bytes, defines: Mapping[str, int], options: tuple[str, ...]) -> Translated:
-    deadline = time.monotonic() + TRANSLATION_SECONDS
+    deadline = time.process_time() + TRANSLATION_SECONDS
     name = Path(filename).name
     text = decode(source, name)
+    if len(text) > preprocess.MAX_OUTPUT_CHARS:
+        raise CCompileError(f"the file has {len(text):,} characters: a firmware is a few thousand lines at most "
+                            f"(the kit takes {preprocess.MAX_OUTPUT_CHARS:,})", filename)
+    if text.count("\n") > MAX_LINES:
+        raise CCompileError(f"the file has more than {MAX_LINES:,} lines: a firmware has a few hundred", filename)
     done = preprocess.preprocess(text, filename, defines, deadline)
     for define in defines:
         if define not in done.defines:

@@ -140,7 +140,7 @@ class Translator:
         if self.statements > MAX_STATEMENTS:
             raise self.refuse(node, f"the file has more than {MAX_STATEMENTS:,} statements: a firmware is a few "
                                     "hundred")
-        if self.statements % 256 == 0 and time.monotonic() > self.deadline:
+        if self.statements % 256 == 0 and time.process_time() > self.deadline:
             raise self.refuse(node, "the translation ran out of its time")
 
     def temp(self, stem: str = "t") -> str:
@@ -1832,7 +1832,7 @@ _HINTS = {
 def header_symbols(tree: c_ast.FileAST, filename: str, options: Sequence[str]) -> dict[str, Sym]:
     """The declarations of a kit header, as symbols: registers (at their addresses), their NAMEbits, library
     functions (each bound to its Python implementation), typedefs and enumerators."""
-    tr = Translator(filename, [], options, time.monotonic() + 60)
+    tr = Translator(filename, [], options, time.process_time() + 60)
     tr.filename = "\0"          # every node is in a header: errors name the header
     for ext in tree.ext:
         try:

@@ -173,7 +173,7 @@ class _Walled(pcpp.Preprocessor):
             self.fail(result[0].lineno if result else 0,
                       f"the macros add more than {MAX_EXPANDED_TOKENS:,} tokens: a macro bomb (a macro "
                       "that uses another several times, over and over)?")
-        if time.monotonic() > self.deadline:
+        if time.process_time() > self.deadline:
             self.fail(result[0].lineno if result else 0, "the preprocessor ran out of its time")
         return result
 
@@ -191,7 +191,7 @@ def kit_header(name: str, declarations: bool = True) -> _Header:
     declarations = declarations or name != headers.DEVICE_HEADER
     found = _HEADERS.get((name, declarations))
     if found is None:
-        walled = _Walled(name, time.monotonic() + 60)
+        walled = _Walled(name, time.process_time() + 60)
         text = headers.header_text(name)
         if name == headers.DEVICE_HEADER and not declarations:
             text = "\n".join(line if line.lstrip().startswith("#") else "" for line in text.splitlines())

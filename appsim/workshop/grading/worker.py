@@ -104,8 +104,8 @@ def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | N
 
     if source is None:
         fault = Fault(**problem) if problem else Fault(
-            "missing", f"{EXERCISE_FILES[exercise]} (or {C_FILES[exercise]}) is missing from this submission: "
-                       f"nothing to grade for {exercise}")
+            "missing", f"{EXERCISE_FILES[exercise]} is missing from this submission (and {C_FILES[exercise]}, its C "
+                       f"twin): nothing to grade for {exercise}")
         return exercise_record(not_judged(exercise, seed, fault.kind, fault.message))
     firmware = SandboxedFirmware(sandbox, name, source, sandbox.limits, owner=owner, spare=spare)
     try:
