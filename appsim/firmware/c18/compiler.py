@@ -1093,12 +1093,13 @@ class Translator:
         raise self.refuse(node, f"the two sides of ?: are {a.t.spelled()} and {b.t.spelled()}")
 
     def x_ExprList(self, node: c_ast.ExprList) -> E:
-        items = [self.expr(item) for item in node.exprs]
-        last = self.rvalue(node.exprs[-1]) if node.exprs else None
-        if last is None:
+        """The comma operator: each in turn, the value of the last."""
+        if not node.exprs:
             raise self.refuse(node, "an empty expression")
-        return E(ast.Subscript(ast.Tuple([i.py for i in items[:-1]] + [last.py], ast.Load()), ast.Constant(-1),
-                               ast.Load()), last.t, last.lo, last.hi)
+        first = [self.expr(item).py for item in node.exprs[:-1]]
+        last = self.rvalue(node.exprs[-1])
+        return E(ast.Subscript(ast.Tuple([*first, last.py], ast.Load()), ast.Constant(-1), ast.Load()), last.t,
+                 last.lo, last.hi)
 
     def x_Cast(self, node: c_ast.Cast) -> E:
         t = self.type_of(node.to_type)
@@ -1216,8 +1217,8 @@ class Translator:
                     return ast.Constant(None)
                 target = t.target.spelled()
                 raise self.refuse(node, f"{what} is {t.spelled()}: the address of a {target} where the function "
-                                        f"writes or reads it; {self.shown(e, node)} is a {e.t.spelled()}, not an "
-                                        f"address: pass its address, &{self.shown(e, node)}" if e.name else
+                                        f"writes or reads it; {e.name} is a {e.t.spelled()}, not an address: pass "
+                                        f"its address, &{e.name}" if e.name else
                                         f"{what} is {t.spelled()}: an address; a number is not one here")
             if not isinstance(e.t, Pointer):
                 raise self.refuse(node, f"{what} is {t.spelled()}; this is {e.t.spelled()}")
@@ -1228,9 +1229,6 @@ class Translator:
                 raise self.refuse(node, f"{what} is {t.spelled()}; this is {e.t.spelled()}")
             return e.py
         raise self.refuse(node, f"{what} of type {t.spelled()} is not supported by the kit's C")
-
-    def shown(self, e: E, node: Any) -> str:
-        return e.name or "it"
 
     def check_pointer(self, e: E, t: Pointer, node: Any, what: str, cast: bool = False) -> None:
         assert isinstance(e.t, Pointer)
@@ -1341,8 +1339,7 @@ class Translator:
         else:
             temp = self.temp("i")
             value, test_value = _name(temp), ast.NamedExpr(_name(temp, True), k.py)
-        lower = [ast.Constant(0), [ast.LtE()]] if k.lo < 0 else None
-        if lower is not None:
+        if k.lo < 0:                    # an index that can be negative: 0 <= i < n
             test: ast.expr = ast.Compare(ast.Constant(0), [ast.LtE(), ast.Lt()], [test_value, ast.Constant(n)])
         else:
             test = ast.Compare(test_value, [ast.Lt()], [ast.Constant(n)])

@@ -7,6 +7,7 @@ FORKED with the child's number, and ENDED with how a child ended (its status and
 """
 from __future__ import annotations
 
+import gc
 import json
 import os
 import select
@@ -39,6 +40,7 @@ def main(settings: dict[str, Any]) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the grader's
     _not_dumpable()
     child.boot()
+    gc.freeze()                         # what the children inherit is never collected there: not touched, not copied
     ended_r, ended_w = os.pipe()
     os.set_blocking(ended_w, False)
     signal.set_wakeup_fd(ended_w)
@@ -59,6 +61,7 @@ def main(settings: dict[str, Any]) -> None:
                 return                  # the grader is done with this submission
             if message == FORK_C:
                 child.boot_c()          # once: this child and every later one start with the headers parsed
+                gc.freeze()
             pid = (_fork(settings, fds, keep={control_fd, ended_r, ended_w})
                    if message in (FORK, FORK_C) and len(fds) == 2 else 0)
             for fd in fds:
