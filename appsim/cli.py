@@ -5,6 +5,8 @@
 from __future__ import annotations
 
 import argparse
+import io
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -13,8 +15,10 @@ from typing import Any
 from appsim.can.bittiming import CLASSIC_CAN_MAX_BIT_RATE, FOSC_MAX_HZ
 from appsim.errors import FirmwareError, OutputError
 from appsim.workshop.course import CLASSROOM_BIT_RATE, STATIONS, exercise_name
+from appsim.workshop.workspace import FOLDER as NOTEBOOKS_FOLDER
 
 HOUR, DAY = 3600, 86400
+DEMO_SECONDS, BOARD_SECONDS, CLASSROOM_SECONDS = 2.0, 0.5, 2.0
 INTERRUPTED = 130               # the exit status after Ctrl-C: 128 + SIGINT, as shells report it
 
 
@@ -115,7 +119,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return session.cmd_demo(args)
 
 
+def _serving(args: argparse.Namespace, default_seconds: float, what: str) -> None:
+    """--serve: the run lasts a day unless --seconds says (Ctrl-C stops it), and the programs are told what it is."""
+    if args.seconds is None:
+        args.seconds = DAY if args.serve else default_seconds
+    args.serving = what
+
+
 def cmd_board(args: argparse.Namespace) -> int:
+    _serving(args, BOARD_SECONDS, f"{Path(args.firmware).name} on one APP023 board")
     from appsim import session
     return session.cmd_board(args)
 
@@ -124,6 +136,7 @@ def cmd_classroom(args: argparse.Namespace) -> int:
     if args.station is not None and args.join is None:
         args.usage_error("--station says which station your firmware takes, so it goes with --join: "
                          "--join my_ex3.py --station 2")
+    _serving(args, CLASSROOM_SECONDS, f"the classroom at exercise {args.exercise}")
     from appsim import session
     return session.cmd_classroom(args)
 
@@ -134,24 +147,57 @@ def cmd_monitor(args: argparse.Namespace) -> int:
 
 
 def cmd_bittiming(args: argparse.Namespace) -> int:
-    from appsim.can.bittiming import calculate, format_table
+    """The settings for a bit rate, the classroom's first where it is one of them; where none gives the rate exactly,
+    those of the nearest rate, and exit status 1."""
+    from appsim.can.bittiming import TOLERATED_RATE_ERROR, calculate, error_percent, format_table, nearest
     from appsim.chip.clock import FOSC_HZ
+    from appsim.workshop.course import CLASSROOM_TIMING
     fosc = args.fosc or FOSC_HZ
+    at = f"at Fosc = {fosc // 10**6} MHz" if fosc % 10**6 == 0 else f"at Fosc = {fosc:,} Hz"
     solutions = calculate(args.bit_rate, fosc)
-    if not solutions:
-        print(f"no valid bit timing gives exactly {args.bit_rate} bit/s at Fosc {fosc} Hz "
-              "(8..25 TQ per bit, BRP 1..64)")
-        return 1
-    print(format_table(solutions[: args.top]))
-    return 0
+    if solutions:
+        title = f"{args.bit_rate:,} bit/s {at}: {len(solutions)} valid settings give it exactly"
+    else:
+        solutions = nearest(args.bit_rate, fosc)
+        rates = " and ".join(sorted({f"{float(s.bit_rate):,.2f} bit/s ({error_percent(s.error)} %)"
+                                     for s in solutions}))
+        many = f"{len(solutions)} settings give it" if len(solutions) > 1 else "1 setting gives it"
+        title = (f"no valid setting gives exactly {args.bit_rate:,} bit/s {at} (8..25 TQ a bit, BRP 1..64); the "
+                 f"nearest rate is {rates}: {many}")
+        if abs(solutions[0].error) > TOLERATED_RATE_ERROR:
+            title += (f"; that is further off than any CAN node tolerates ({float(TOLERATED_RATE_ERROR) * 100:g} % "
+                      f"at best), so it could not talk with nodes at {args.bit_rate:,} bit/s")
+    workshop = [s for s in solutions if s.timing == CLASSROOM_TIMING]
+    shown = (workshop + [s for s in solutions if s.timing != CLASSROOM_TIMING])[: args.top]
+    order = "the classroom's first, then by" if workshop else "by"
+    print(f"{title}; {len(shown)} listed (--top), {order} sample point nearest 87.5 % (CiA), then more TQ a bit")
+    print(format_table(shown, {CLASSROOM_TIMING: "the classroom's: every exercise's CANInitialize"}))
+    return 0 if solutions[0].error == 0 else 1
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    """One exercise, checked as in the notebook: the verdict, and exit status 0 only with full marks."""
-    from appsim.workshop.checks import check
+    """One exercise, checked as in the notebook: the verdict, and exit status 0 only with full marks (2: no firmware
+    file to check, as `board` and `classroom` say)."""
+    from appsim.workshop.checks import check, refusal
+    problem = None if args.firmware is None else refusal(args.exercise, args.firmware)
+    if problem is not None:
+        raise FirmwareError(problem)
     verdict = check(args.exercise, args.firmware, seed=args.seed, c_options=args.c_option)
     print(verdict)
     return 0 if verdict.passed else 1
+
+
+def cmd_notebooks(args: argparse.Namespace) -> int:
+    """Your copy of the workshop's notebooks, to open in JupyterLab: the kit's own stay as shipped."""
+    from appsim.workshop.workspace import copy_notebooks
+    print(copy_notebooks(args.folder).report())
+    return 0
+
+
+def cmd_dbc(args: argparse.Namespace) -> int:
+    from appsim.workshop.frames import WORKSHOP_DBC
+    print(WORKSHOP_DBC)
+    return 0
 
 
 def cmd_grade(args: argparse.Namespace) -> int:
@@ -193,6 +239,43 @@ def _c_option(parser: argparse.ArgumentParser) -> None:
                         help="the same as --c-option=-Oi, as C18's command line writes it")
 
 
+class _Version(argparse.Action):
+    """--version: the kit as its grades record it (version and code digest) and its git commit, then exit."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        from appsim import provenance
+        from appsim.workshop.grading.results import kit_version
+        commit = provenance.commit()
+        if commit is None:
+            where = "unknown: the kit runs from no git checkout, and its wheel recorded none"
+        elif commit.endswith(provenance.DIRTY):
+            where = (f"{commit}: its code differs from that commit (changed or new files), so no commit has it; "
+                     "the digest above is its only identity")
+        else:
+            where = commit
+        print(f"appsim {kit_version()}\ngit commit {where}")
+        parser.exit()
+
+
+def cmd_gradescope_autograder(args: argparse.Namespace) -> int:
+    import random
+
+    from appsim.errors import GradeError
+    from appsim.workshop.grading.autograder import build
+    seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2**32)
+    try:
+        build(args.out, seed=seed, time_limit_s=args.time_limit, visibility=args.visibility)
+    except GradeError as error:
+        print(f"appsim gradescope-autograder: {error}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.out}: upload it as the assignment's autograder (Gradescope: Configure Autograder, zip file "
+          f"upload). Seed {seed}: `appsim grade SUBMISSION --seed {seed}` gives the same marks (docs/grading.md)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="appsim",
@@ -202,6 +285,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "a .c file for MPLAB C18 (see docs/c-firmware.md). "
                     "Everything runs on a simulated clock, deterministic, with no hardware; "
                     "--interface/--channel join any python-can bus (a vcan, a real adapter) in real time.")
+    parser.add_argument("--version", action=_Version,
+                        help="the kit's version with the digest of its code (as grade records keep it) and its git "
+                             "commit (docs/grading.md: matching a gradebook to a commit)")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     demo = commands.add_parser(
@@ -254,9 +340,16 @@ def build_parser() -> argparse.ArgumentParser:
     monitor.add_argument("--transport", choices=("pty", "socket"), default="pty",
                          help="pty (a /dev/pts path) or socket (socket://127.0.0.1:PORT for pyserial)")
 
-    for sub, default_seconds in ((demo, 2.0), (board, 0.5), (classroom, 2.0)):
-        sub.add_argument("--seconds", type=_seconds, default=default_seconds,
-                         help=f"simulated time to run, up to a day (default {default_seconds:g} s)")
+    demo.add_argument("--seconds", type=_seconds, default=DEMO_SECONDS,
+                      help=f"simulated time to run, up to a day (default {DEMO_SECONDS:g} s)")
+    for sub, default_seconds in ((board, BOARD_SECONDS), (classroom, CLASSROOM_SECONDS)):
+        sub.add_argument("--seconds", type=_seconds, default=None,
+                         help=f"simulated time to run, up to a day (default {default_seconds:g} s; with --serve a "
+                              "day, until Ctrl-C)")
+        sub.add_argument("--serve", nargs="?", const="classroom", metavar="NAME",
+                         help="serve the bus to python-can programs of this user on this machine (127.0.0.1 only), "
+                              "in real time: can.Bus(interface='appsim', channel=NAME), python -m can.viewer -i appsim "
+                              "-c NAME (default NAME: classroom; docs/pythoncan.md)")
     monitor.add_argument("--seconds", type=_seconds, default=60.0,
                          help="how long the monitor runs, in seconds of real time: it stops then (default 60 s, "
                               "up to a day; Ctrl-C stops it sooner)")
@@ -267,6 +360,10 @@ def build_parser() -> argparse.ArgumentParser:
         sub.add_argument("--vcd", type=Path, metavar="FILE",
                          help="write the CAN line's waveform as it goes, a VCD for PulseView or sigrok-cli's CAN "
                               "decoder (docs/traces.md)")
+    for sub in (demo, board, classroom):
+        sub.add_argument("--dbc", nargs="?", const="", metavar="FILE",
+                         help="show each frame's signals under it, read through a CAN database: FILE, or without "
+                              "it the workshop's (appsim dbc prints where it is)")
     for sub in (board, classroom, monitor):
         sub.add_argument("--log", type=Path, action="append", metavar="FILE",
                          help="write every frame as it goes: .log (candump), .asc, .blf or .csv (give --log again "
@@ -281,7 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     timing = commands.add_parser("bittiming", help="list BRGCON settings for a bit rate",
                                  description="Every valid PIC18F8680 bit timing for a classic CAN bit rate (up to "
-                                             "1 Mbit/s), best sample point first, with the BRGCON1..3 values.")
+                                             "1 Mbit/s) as CANInitialize takes it, with the BRGCON1..3 values: the "
+                                             "workshop's first, then by sample point. Where none gives the rate "
+                                             "exactly, those of the nearest rate, and exit status 1.")
     timing.add_argument("bit_rate", type=_bit_rate, nargs="?", default=CLASSROOM_BIT_RATE,
                         help="bit rate in bit/s, 1 .. 1000000 (default 125000, the classroom bus)")
     timing.add_argument("--fosc", type=_fosc, help="oscillator frequency in Hz, up to 40 MHz (default 40 MHz, the "
@@ -301,8 +400,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="JSON-lines results, one record per submission (default: CLASS.grades.jsonl beside the "
                             "first PATH)")
     grade.add_argument("--csv", type=Path, help="write the gradebook: a row per submission, a column per exercise")
-    grade.add_argument("--gradescope", type=Path,
-                       help="Gradescope results.json (one submission), else a folder of NAME.json")
+    grade.add_argument("--gradescope", metavar="PATH",
+                       help="Gradescope results.json (one submission), else a folder of NAME.json (always with a "
+                            "PATH that is a folder or ends in /)")
     grade.add_argument("--jobs", type=_jobs, default=None, help="exercises graded at once (default: the cores)")
     grade.add_argument("--seed", type=_seed, help="seed of the random inputs (default: the results file's, else drawn)")
     grade.add_argument("--time-limit", type=_cpu_seconds, default=60.0,
@@ -317,6 +417,38 @@ def build_parser() -> argparse.ArgumentParser:
     _c_option(grade)
     grade.set_defaults(handler=cmd_grade)
 
+    notebooks = commands.add_parser(
+        "notebooks", help="copy the workshop's notebooks into a folder of your own, to open in JupyterLab",
+        description="Copy the workshop's notebooks (notebooks/ in the kit's clone) into FOLDER, where you run and "
+                    "edit them; the kit's own stay as shipped, so `git pull` updates the kit without a conflict. A "
+                    "notebook already in FOLDER is never overwritten: run it again after `git pull` to get the new "
+                    "notebooks, and to hear which of yours the kit has changed since you copied them.")
+    notebooks.add_argument("folder", nargs="?", type=Path, default=Path(NOTEBOOKS_FOLDER), metavar="FOLDER",
+                           help=f"where your notebooks go (default ./{NOTEBOOKS_FOLDER}, which git ignores)")
+    notebooks.set_defaults(handler=cmd_notebooks)
+
+
+    dbc = commands.add_parser(
+        "dbc", help="where the workshop's CAN database (DBC) is, for cantools and other DBC tools",
+        description="Print the path of workshop.dbc, the workshop's frames as a CAN database (0x088, 0x081..0x086, "
+                    "0x100..0x150 with their A/D value): cantools decode \"$(appsim dbc)\" < trace.log")
+    dbc.set_defaults(handler=cmd_dbc)
+
+    autograder = commands.add_parser(
+        "gradescope-autograder", help="write a Gradescope autograder zip that grades as appsim grade does",
+        description="Write OUT.zip for a Gradescope programming assignment: setup.sh installs the kit (from a wheel "
+                    "inside the zip) and bubblewrap; run_autograder grades /autograder/submission with appsim grade's "
+                    "checks, seed and verdict, into results.json, one test per check. See docs/grading.md.")
+    autograder.add_argument("out", type=Path, metavar="OUT.zip", help="the zip to write")
+    autograder.add_argument("--seed", type=_seed, help="seed of the random inputs, the same for every student "
+                                                       "(default: drawn and printed)")
+    autograder.add_argument("--time-limit", type=_cpu_seconds, default=60.0,
+                            help="CPU seconds per exercise, as appsim grade's (default 60)")
+    autograder.add_argument("--visibility", default="visible",
+                            choices=("visible", "after_due_date", "after_published", "hidden"),
+                            help="when students see each check's result on Gradescope (default visible)")
+    autograder.set_defaults(handler=cmd_gradescope_autograder)
+
     checking = commands.add_parser(
         "check", help="check your firmware for one exercise, as the notebook does",
         description="Run FIRMWARE (default: exercises/exN.py) in a simulated classroom and judge what it did on "
@@ -325,15 +457,54 @@ def build_parser() -> argparse.ArgumentParser:
     checking.add_argument("exercise", type=_exercise_name, metavar="EXERCISE",
                           help="ex1 .. ex6 (or 1 .. 6, EX3 ...) or demo1")
     checking.add_argument("firmware", nargs="?",
-                          help="your firmware file, .py or .c (default: exercises/EXERCISE.py)")
+                          help="your firmware file, .py or .c, or your notebook (its firmware cell, as appsim grade "
+                               "reads it) (default: exercises/EXERCISE.py)")
     checking.add_argument("--seed", type=_seed, help="seed of the random inputs (default: a fresh one, printed)")
     _c_option(checking)
     checking.set_defaults(handler=cmd_check)
     return parser
 
 
+class _UntilItsReaderGoes(io.RawIOBase):
+    """A file descriptor of the process's own (1, 2) that becomes /dev/null once its reader has gone (`appsim check
+    ex1 | head -2`): the command ends its work (a class graded, the files written) with its own exit status."""
+
+    def __init__(self, fd: int):
+        super().__init__()
+        self.fd = fd
+
+    def writable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self.fd
+
+    def isatty(self) -> bool:
+        return os.isatty(self.fd)
+
+    def write(self, data: Any) -> int:
+        try:
+            return os.write(self.fd, data)
+        except BrokenPipeError:
+            nowhere = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(nowhere, self.fd)
+            os.close(nowhere)
+            return len(data)
+
+
+def _outliving_their_readers() -> None:
+    """stdout and stderr, where they are the process's own, as `_UntilItsReaderGoes`."""
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        if stream is not None and stream is getattr(sys, f"__{name}__"):
+            setattr(sys, name, io.TextIOWrapper(io.BufferedWriter(_UntilItsReaderGoes(stream.fileno())),
+                                                encoding=stream.encoding, errors=stream.errors,
+                                                line_buffering=stream.line_buffering))
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    _outliving_their_readers()
     try:
         return args.handler(args)
     except (FirmwareError, OutputError) as error:
@@ -342,9 +513,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as interrupt:       # one line, which says what was kept where the command knows it
         print(f"appsim {args.command}: {str(interrupt) or 'interrupted (Ctrl-C)'}", file=sys.stderr)
         return INTERRUPTED
-    except BrokenPipeError:          # `appsim demo | head`: the reader has all it wanted
-        sys.stdout = None
-        return 0
 
 
 if __name__ == "__main__":

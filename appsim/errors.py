@@ -61,6 +61,10 @@ class NotInitialised(AppsimError, RuntimeError):
     """A GLCD function was called before GLCD_Initial()."""
 
 
+class NoInterruptRoutine(AppsimError, RuntimeError):
+    """The core took an interrupt at a vector where the firmware has no routine (@interrupt, @interruptlow)."""
+
+
 # ------------------------------------------------------------------ firmware
 class FirmwareError(AppsimError):
     """A firmware file that cannot run, with what to do about it."""

@@ -18,6 +18,8 @@ from appsim.board.usbcdc import UsbCdc
 from appsim.bus.link import BusLink
 from appsim.bus.monitor import HEADER, EventFile, LiveTrace, TraceLog, cannot_write, error_counters, summary
 from appsim.bus.realtime import WallClock
+from appsim.bus.serve import ClassroomServer
+from appsim.bus.signals import DbcError, Signals
 from appsim.bus.waveform import WaveformLog
 from appsim.bus.wire import Bus, BusEvent
 from appsim.chip.mcu import PIC18F8680
@@ -27,8 +29,10 @@ from appsim.workshop.checks.demo1 import FRAME_LINE, LOST_COUNT
 from appsim.workshop.classroom import Classroom, station_defines
 from appsim.workshop.course import CLASSROOM_BIT_RATE, EXERCISE_FILES, SOLUTIONS, STATIONS, station_ids
 from appsim.workshop.faults import board_fault
+from appsim.workshop.frames import WORKSHOP_DBC
 
 TRACE_LINES_SHOWN = 40
+SIGNAL_INDENT = " " * 13        # the lines under a frame's (its signals, a note): not frames of their own
 PROGRESS_EVERY_S = 1.0          # wall-clock seconds between two progress lines
 
 
@@ -57,6 +61,16 @@ class Progress:
             self.shown = False
 
 
+def dbc_signals(dbc: str | None) -> Signals | None:
+    """--dbc: the signals of the DBC it names ("" for the workshop's, as --dbc alone gives), or None without it."""
+    if dbc is None:
+        return None
+    try:
+        return Signals(dbc or WORKSHOP_DBC)
+    except DbcError as error:
+        raise SystemExit(f"appsim: --dbc: {error}") from None
+
+
 class Session:
     """One simulated bus, and how it runs: as fast as it can, or linked to an outside bus in real time.
 
@@ -69,7 +83,8 @@ class Session:
         self.bus = Bus(self.sim, CLASSROOM_BIT_RATE)
         self.out = out
         self.link: BusLink | None = None
-        self.trace = LiveTrace(self.bus)
+        self.server: ClassroomServer | None = None
+        self.trace = LiveTrace(self.bus, signals=dbc_signals(getattr(args, "dbc", None)))
         self.logs: list[EventFile] = []
         self.reported: set[str] = set()          # boards whose stop was reported
         try:
@@ -83,9 +98,20 @@ class Session:
                 except (can.CanError, ValueError, OSError, ImportError) as error:
                     raise SystemExit(f"appsim: cannot open the python-can bus interface={args.interface!r} "
                                      f"channel={args.channel!r}: {error}") from None
+            if getattr(args, "serve", None):
+                try:
+                    self.server = ClassroomServer(self.bus, args.serve, what=getattr(args, "serving", ""))
+                except (can.CanError, OSError) as error:
+                    raise SystemExit(f"appsim: cannot serve the classroom to python-can: {error}") from None
         except BaseException:
             self.close()
             raise
+
+    @property
+    def real_time(self) -> bool:
+        """Linked to an outside bus or served to python-can programs: it runs paced to the wall clock, its trace shown
+        as it goes."""
+        return self.link is not None or self.server is not None
 
     def _keep(self, log: EventFile) -> None:
         self.logs.append(log)
@@ -97,10 +123,11 @@ class Session:
         wall clock with `pollers` and the link polled between slices, the trace shown live if `live`, and a board
         that stops reported when it does. `progress` shows how far it is on a terminal (as fast as it can, runs of
         5 s or more show their simulated time anyway)."""
-        if self.link is None and not real_time and progress is None and seconds >= 5:
+        real_time = real_time or self.real_time
+        if not real_time and progress is None and seconds >= 5:
             progress = Progress(self.sim, seconds)
         try:
-            if self.link is None and not real_time:
+            if not real_time:
                 self._fast(seconds, progress)
                 return
             clock = WallClock(self.sim)
@@ -111,6 +138,10 @@ class Session:
                 clock.add_poller(self.link.poll)
                 print(f"linked to {self.link.outside.channel_info}, running in real time for {seconds:g} s "
                       "(Ctrl-C stops)", file=self.out)
+            if self.server is not None:
+                clock.add_poller(self.server.poll)
+                print(f"{self.server.how_to_join}; running in real time for {seconds:g} s (Ctrl-C stops)",
+                      file=self.out, flush=True)
             if live:
                 clock.add_poller(lambda: self._show(self.trace.new_lines()))
             clock.run(seconds)
@@ -131,15 +162,16 @@ class Session:
             print(line, file=self.out)
 
     def print_trace(self, limit: int | None = TRACE_LINES_SHOWN, *, more: str = "") -> None:
-        """The trace's new lines, the first `limit` of them; past the limit, how many more and where they are (in a
-        log, or `more`: how this command shows them)."""
+        """The trace's new lines, those of the first `limit` frames (a frame's signals, with --dbc, on the line under
+        it); past the limit, how many more and where they are (in a log, or `more`: how this command shows them)."""
         lines = self.trace.new_lines()
+        starts = [n for n, line in enumerate(lines) if not line.startswith(SIGNAL_INDENT)]    # each frame's line
         print(HEADER, file=self.out)
-        self._show(lines if limit is None else lines[:limit])
-        if limit is not None and len(lines) > limit:
+        self._show(lines if limit is None or len(starts) <= limit else lines[:starts[limit]])
+        if limit is not None and len(starts) > limit:
             logged = next((log.path for log in self.logs if isinstance(log, TraceLog)), None)
             where = f"all of them are in {logged}" if logged else "--log trace.log keeps them"
-            print(f"{'':>11}  ... {len(lines) - limit} more frames ({where}{'; ' + more if more else ''})",
+            print(f"{'':>11}  ... {len(starts) - limit} more frames ({where}{'; ' + more if more else ''})",
                   file=self.out)
         print(summary(self.bus), file=self.out)
 
@@ -174,6 +206,10 @@ class Session:
             print(self.link.report(), file=self.out)
             self.link.close()
             self.link = None
+        if self.server is not None:
+            self.server.close()
+            print(self.server.report(), file=self.out)
+            self.server = None
 
     def __enter__(self) -> Session:
         return self
@@ -311,7 +347,7 @@ def cmd_board(args: argparse.Namespace, session: Session) -> None:
               file=out)
         for _, what in event.received:
             print(f"  {event.end_ps / PS_PER_SECOND:10.6f} s  received: {what}", file=out)
-    if session.link is None:
+    if not session.real_time:
         session.print_trace()
     print(board.glcd, file=out)
     session.print_written()
@@ -341,7 +377,7 @@ def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
     print(f"Classroom at exercise {args.exercise}: the master and six stations running "
           f"solutions/ex{args.exercise}.py{who}.", file=out)
     session.run(args.seconds, live=True)
-    if session.link is None:
+    if not session.real_time:
         session.print_trace(limit=None if args.full_trace else TRACE_LINES_SHOWN, more="--full-trace prints them")
     print("\n" + error_counters(session.bus) + "\n", file=out)
     print_lcds(classroom.boards, out)
@@ -358,7 +394,9 @@ class MonitorTally:
 
     def __init__(self, bus: Bus, board: APP023):
         self.name = board.name
+        self.usart = board.usart
         self.frames = 0                   # frames that went through on the bus
+        self.listed_bytes = 0             # the bytes of the frame lines, line ends included
         self.not_listening = 0            # of them, sent while the monitor's ECAN was not on the bus
         self.lost_in_ecan = 0             # of them, lost because RXB0 and RXB1 were full
         self.listed = 0                   # frame lines on the serial port
@@ -386,6 +424,7 @@ class MonitorTally:
         self._line.clear()
         if FRAME_LINE.match(line) or line[:1] in ("t", "T", "r", "R"):
             self.listed += 1
+            self.listed_bytes += len(line) + (2 if FRAME_LINE.match(line) else 1)      # CR LF; SLCAN's CR
         elif line.startswith("#"):
             self.lost_in_queue += sum(int(n) for n in LOST_COUNT.findall(line))
 
@@ -397,7 +436,8 @@ class MonitorTally:
     def progress(self) -> str:
         return f"{self.frames:,} frames on the bus: {self.listed:,} listed, {self.lost:,} lost on the CAN side"
 
-    def summary(self) -> str:
+    def summary(self, seconds: float) -> str:
+        """What became of the frames of a run of `seconds`, and why frames were lost in the board's queue."""
         def share(count: int) -> str:
             return f"{count:,} ({count / self.frames:.0%})" if self.frames else f"{count:,}"
 
@@ -406,11 +446,27 @@ class MonitorTally:
                  f"  {share(self.listed)} listed by the monitor on its serial port",
                  f"  {share(self.lost)} lost on the CAN side: {self.lost_in_queue:,} when its RAM queue was full "
                  f"(its '# lost' lines), {self.lost_in_ecan:,} when RXB0 and RXB1 were full"]
+        if self.lost_in_queue and self.listed and seconds > 0:
+            lines.append("    " + self._why_the_queue_was_full(seconds))
         if neither:
             lines.append(f"  {share(neither)} neither listed nor said lost: {self.not_listening:,} went by before the "
-                         "monitor listened, the others were still inside it when the run ended (queued, or counted "
-                         "for a '# lost' line not sent yet) or were dropped without a word")
+                         "monitor listened; the others were still inside it when the run ended (queued, or counted "
+                         "for a '# lost' line not sent yet), or were dropped without a '# lost' line")
         return "\n".join(lines)
+
+    def _why_the_queue_was_full(self, seconds: float) -> str:
+        """The USART's budget against the bus's frame rate: the faithful 19200-baud limit, or a slow firmware."""
+        line_bytes = self.listed_bytes / self.listed
+        bytes_per_s = self.usart.baud / 10                          # 8N1: start, 8 data bits, stop
+        can_list, listed, offered = bytes_per_s / line_bytes, self.listed / seconds, self.frames / seconds
+        budget = (f"why: a frame's line is about {line_bytes:.0f} bytes and the USART sends {bytes_per_s:,.0f} bytes "
+                  f"a second ({self.usart.baud:,.0f} baud, 8N1), so the monitor can list about {can_list:.0f} frames "
+                  f"a second, while the bus carried {offered:.0f} a second")
+        if listed >= 0.9 * can_list:
+            return (f"{budget}: its RAM queue fills, and it says '# lost N'. That is the APP023's own limit, as on the "
+                    "real board, not a fault of the firmware (docs/monitor-format.md)")
+        return (f"{budget}; it listed {listed:.0f} a second, fewer than its USART could send: the firmware is slower "
+                "than its serial link")
 
 
 @session_command()
@@ -441,7 +497,7 @@ def cmd_monitor(args: argparse.Namespace, session: Session) -> None:
                         progress=Progress(session.sim, args.seconds,
                                           lambda: f"{tally.progress()}; USB: {usb.lost_to_pc:,} bytes lost"))
         finally:            # after Ctrl-C too: what became of the frames, and a port left as a program expects
-            print(f"{tally.summary()}\n{usb.report()}", file=out)
+            print(f"{tally.summary(session.sim.now / PS_PER_SECOND)}\n{usb.report()}", file=out)
             session.print_written()
             out.flush()
             if usb.in_use():

@@ -18,6 +18,8 @@ import greenlet
 from appsim.watchdog import ctrl_c_stops_the_run, watchdog
 
 PS_PER_SECOND = 10**12
+COMPACT_EVENTS = 1024           # scheduled events beyond which cancelled ones are dropped (a firmware that restarts
+                                # Timer1 forever cancels its overflow each time)
 TRACEBACK_FRAMES = 50           # of a failing firmware, the innermost a report looks at (a recursion has thousands)
 
 
@@ -60,6 +62,7 @@ class Simulator:
         self.quantum_ps = quantum_ps
         self.quiet_until: Callable[[], int] = lambda: 0
         self._events: list[tuple[int, int, Timer]] = []
+        self._compact_at = COMPACT_EVENTS
         self._ready: list[tuple[int, int, Process]] = []
         self._order = itertools.count()
         self.processes: list[Process] = []
@@ -77,7 +80,12 @@ class Simulator:
         When firmware causes the event (a register write), it may not run past it without seeing it.
         """
         timer = Timer(max(time, self.now), callback)
-        heapq.heappush(self._events, (timer.time, next(self._order), timer))
+        events = self._events
+        if len(events) >= self._compact_at:     # cancelled timers stay until their time: drop them now and then
+            events[:] = [event for event in events if not event[2].cancelled]
+            heapq.heapify(events)
+            self._compact_at = max(COMPACT_EVENTS, 2 * len(events))
+        heapq.heappush(events, (timer.time, next(self._order), timer))
         running = self.running
         if running is not None and timer.time < running.horizon:
             running.horizon = timer.time
@@ -165,8 +173,8 @@ class Process(greenlet.greenlet):
     """
 
     # Slots: attributes of a greenlet subclass are otherwise looked up the slow way, on every register access.
-    __slots__ = ("failure", "finished", "horizon", "local_time", "main", "name", "parked", "sim", "stopping",
-                 "watched")
+    __slots__ = ("failure", "finished", "horizon", "local_time", "main", "name", "parked", "routine", "sim",
+                 "stopping", "watched")
 
     def __init__(self, sim: Simulator, name: str, main: Callable[[], Any], context: contextvars.Context | None):
         super().__init__(self._body)
@@ -179,6 +187,7 @@ class Process(greenlet.greenlet):
         self.horizon: float = 0
         self.parked = False
         self.watched = True           # by the watchdog (a sandboxed firmware has its own limits)
+        self.routine = "main()"       # what runs now, in messages: main(), or the interrupt routine that interrupted it
         self.finished = False
         self.stopping = False
         self.failure: BaseException | None = None

@@ -119,7 +119,7 @@ def what_it_saw(process: Process, frame: FrameType, ran: str, asleep: bool) -> s
     if mine is not None:
         line = linecache.getline(mine.f_code.co_filename, mine.f_lineno).strip()
         place = f" at line {mine.f_lineno} of {Path(mine.f_code.co_filename).name} (`{line}`)"
-    ran = f"main() ran {ran}{place} without touching any register"
+    ran = f"{process.routine} ran {ran}{place} without touching any register"
     if asleep:
         return (f"{ran}, waiting: a sleep (time.sleep) or a read that blocks. The simulated clock moves only as "
                 "firmware works the board, so a sleep stops it; to wait, poll Timer1's PIR1bits.TMR1IF or call "
@@ -128,6 +128,9 @@ def what_it_saw(process: Process, frame: FrameType, ran: str, asleep: bool) -> s
         return (f"{ran}, more than {RECURSION_DEPTH} calls deep in {frame.f_code.co_name}(): a recursion that "
                 "does not end. The PIC18's return stack holds 31 calls; loop in main() instead of calling a "
                 "function from itself")
+    if process.routine != "main()":
+        return (f"{ran}: it never returns, so main() never runs again. A real board would hang there too (a routine "
+                "runs until its RETFIE); end the loop, and keep the routine short: set a flag that main() acts on")
     endless = "`while(1);`" if str(process.filename or "").lower().endswith(".c") else "`while True: pass`"
     return (f"{ran}: an endless loop such as {endless}. A real board would hang there too; poll a "
             "register in the loop (e.g. CANIsRxReady()) or end it")

@@ -9,7 +9,8 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from bench import busywait, cfirmware, fullload, grading, knobs, linked, pythoncan
+from appsim.workshop.course import SOLUTIONS
+from bench import busywait, cfirmware, fullload, grading, interrupts, knobs, linked, memory, pythoncan, served
 from bench.figures import Figure, machine, repeat, table
 
 
@@ -25,12 +26,17 @@ class Config:
     class_size: int             # submissions graded by `appsim grade --jobs 2`
     isolation_class: int        # submissions graded sandboxed and --trusted, for the isolation's cost
     knob_turns: int             # slider moves per exercise notebook
+    served_frames: int          # frames from one python-can program to another through the "appsim" interface
+    memory_hogs: tuple[str, ...] | None     # bench.memory's firmware whose worker memory is measured (None: all)
+    classroom_s: float          # simulated seconds of a classroom, polling against interrupt-driven stations
 
 
 FULL = Config(runs=3, full_load_s=0.05, scaling_s=0.02, python_can_frames=20_000, busy_wait_s=10.0,
-              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5)
+              linked_s=1.5, round_trips=10, class_size=60, isolation_class=4, knob_turns=5, served_frames=5000,
+              memory_hogs=None, classroom_s=5.0)
 QUICK = Config(runs=1, full_load_s=0.002, scaling_s=0.001, python_can_frames=200, busy_wait_s=0.3,
-               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1)
+               linked_s=0.2, round_trips=2, class_size=2, isolation_class=1, knob_turns=1, served_frames=100,
+               memory_hogs=("call sites",), classroom_s=0.1)
 
 
 def _runs(config: Config, nodes: int, load: float, simulated_s: float, *, bit_rate: int = fullload.BIT_RATE,
@@ -113,7 +119,55 @@ def _grading(config: Config) -> list[Figure]:
                   repeat(config.runs, lambda: grading.appsim_grade_s(config.class_size, jobs=2)),
                   target=60 if config.class_size == 60 else None, lower_is_better=True,
                   note="full submissions (Ex1..Ex6, Demo1), the whole command")
-    return [first, sandboxed, cost, room]
+    return [first, sandboxed, cost, room, *_memory(config)]
+
+
+def _memory(config: Config) -> list[Figure]:
+    """The grading worker's peak memory per exercise, each graded in a run of its own (`bench.memory`)."""
+    solutions = memory.solutions()
+    if config.memory_hogs is not None:
+        solutions = dict(list(solutions.items())[:1])
+    measured = grading.worker_memory([*solutions, *(config.memory_hogs or memory.HOGS)])
+    honest = {name: m["peak_kb"] / 1024 for name, m in measured.items() if name in solutions}
+    hogs = {name: m["peak_kb"] / 1024 for name, m in measured.items() if name not in solutions}
+    worst = max(hogs, key=hogs.__getitem__)
+    fault = measured[worst]["fault"]
+    return [
+        Figure("grading worker's peak memory per exercise: the solutions", "MB", tuple(honest.values()),
+               note=", ".join(f"{name.removeprefix('solution ')} {value:.1f}" for name, value in honest.items())),
+        Figure("grading worker's peak memory per exercise: firmware written to make the grader keep more", "MB",
+               tuple(hogs.values()), note=f"{len(hogs)} of them (bench.memory.HOGS), each as Demo1; the worst: "
+                                          f"{worst}, {hogs[worst]:.1f} MB" + (f" (fault {fault})" if fault else "")),
+        Figure("the worst of them above the solutions' peak", "MB", (hogs[worst] - max(honest.values()),),
+               target=64, lower_is_better=True),
+    ]
+
+
+def _interrupts(config: Config) -> list[Figure]:
+    figures = []
+    for exercise in (3, 6):
+        polling, driven = [], []
+        for _ in range(max(config.runs, 1)):
+            polling.append(interrupts.classroom_wall_ms_per_simulated_s(exercise, SOLUTIONS, config.classroom_s))
+            driven.append(interrupts.classroom_wall_ms_per_simulated_s(exercise, interrupts.INTERRUPT_DRIVEN,
+                                                                       config.classroom_s))
+        figures += [
+            Figure(f"classroom at Ex{exercise}, the stations polling (solutions/)", "wall ms / sim s", tuple(polling),
+                   note="master, six stations, the PC's monitor"),
+            Figure(f"classroom at Ex{exercise}, the stations interrupt-driven (solutions/interrupts/)",
+                   "wall ms / sim s", tuple(driven)),
+            Figure(f"interrupts' cost in the Ex{exercise} classroom (interrupt-driven / polling)", "ratio",
+                   tuple(d / p for d, p in zip(driven, polling, strict=True))),
+        ]
+    interrupts.checks_s(SOLUTIONS)              # the checks imported and warm, as in the figures above
+    for what, measure, how in (("check Ex1, Ex3, Ex6 in process", interrupts.checks_s, ""),
+                               ("appsim grade of Ex1, Ex3, Ex6, sandboxed", interrupts.appsim_grade_s,
+                                " (the whole command, --jobs 2)")):
+        both = [(measure(SOLUTIONS), measure(interrupts.INTERRUPT_DRIVEN)) for _ in range(max(config.runs, 1))]
+        polling_s, driven_s = (statistics.median(pair[i] for pair in both) for i in (0, 1))
+        figures.append(Figure(f"{what}: interrupt-driven / polling", "ratio", tuple(d / p for p, d in both),
+                              note=f"polling {polling_s:.2f} s, interrupt-driven {driven_s:.2f} s{how}"))
+    return figures
 
 
 def _c_firmware(config: Config) -> list[Figure]:
@@ -171,6 +225,30 @@ def _knobs(config: Config) -> list[Figure]:
     ]
 
 
+def _served(config: Config) -> list[Figure]:
+    through, bare, limits = [], [], []
+    for _ in range(max(config.runs, 1)):
+        fps, limit = served.interface_fps(config.served_frames)
+        through.append(fps)
+        limits.append(limit)
+        bare.append(served.virtual_fps(config.served_frames))
+    runs = [served.gradescope_against_grade_s() for _ in range(max(config.runs, 1))]
+    return [
+        Figure("python-can interface 'appsim': frames/s from one program to another, served bus at 1 Mbit/s",
+               "frames/s", tuple(through),
+               note=f"bus limit {limits[-1]:,.0f} frames/s of 8 bytes; python-can's virtual bus "
+                    f"{statistics.median(bare):,.0f} frames/s in the same run"),
+        Figure("python-can interface 'appsim' / python-can virtual bus", "ratio",
+               tuple(t / b for t, b in zip(through, bare, strict=True)),
+               note="the served bus is paced to the wall clock and arbitrates, ACKs and checks every frame"),
+        Figure("Gradescope: run_autograder on one full submission (after setup.sh)", "wall s",
+               tuple(g for g, _ in runs), lower_is_better=True,
+               note=f"appsim grade of the same, --jobs 2: {statistics.median(a for _, a in runs):.2f} s"),
+        Figure("Gradescope run / appsim grade, one full submission", "ratio", tuple(g / a for g, a in runs),
+               lower_is_better=True),
+    ]
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__)
     parser.add_argument("--quick", action="store_true", help="a tiny configuration (seconds, not minutes)")
@@ -182,7 +260,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
         config = Config(**{**config.__dict__, "runs": args.runs})
     figures: list[Figure] = []
-    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _c_firmware, _linked, _knobs):
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _c_firmware, _linked, _knobs,
+                 _served):
         figures += part(config)
     print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
     print(table(figures))

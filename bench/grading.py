@@ -7,6 +7,7 @@ after its first run): where PYTHONDONTWRITEBYTECODE is set, every process would 
 from __future__ import annotations
 
 import compileall
+import json
 import shutil
 import subprocess
 import sys
@@ -57,3 +58,11 @@ def appsim_grade_s(submissions: int, jobs: int, seed: int = 1, *, trusted: bool 
         if full not in done.stdout:
             raise RuntimeError(f"the solutions did not get full marks:\n{done.stdout}")
         return wall
+
+
+def worker_memory(names: list[str]) -> dict[str, dict[str, object]]:
+    """`bench.memory` for these firmware (by name), in a Python of its own: as little loaded as `appsim grade` has."""
+    compileall.compile_dir(Path(appsim.__file__).parent, quiet=1)
+    done = subprocess.run([sys.executable, "-m", "bench.memory", *names], check=True, capture_output=True, text=True,
+                          cwd=Path(__file__).resolve().parent.parent)
+    return json.loads(done.stdout)

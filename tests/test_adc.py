@@ -7,9 +7,13 @@ import pytest
 
 from appsim.chip.adc import ADC
 from appsim.chip.mcu import PIC18F8680
-from appsim.firmware import Delay10KTCYx
+from appsim.firmware import SFR, Delay10KTCYx, INTCONbits, PIE1bits, PIR1bits
 from appsim.firmware.adc import (
+    ADC_0_TAD,
     ADC_1ANA,
+    ADC_4_TAD,
+    ADC_6ANA,
+    ADC_12_TAD,
     ADC_16ANA,
     ADC_CH0,
     ADC_CH3,
@@ -23,6 +27,7 @@ from appsim.firmware.adc import (
     ADC_FOSC_64,
     ADC_FOSC_RC,
     ADC_INT_OFF,
+    ADC_INT_ON,
     ADC_LEFT_JUST,
     ADC_RIGHT_JUST,
     ADC_VREFMINUS_EXT,
@@ -350,3 +355,102 @@ def test_other_inputs_range() -> None:
         adc.inputs[7] = 1024
     with pytest.raises(IndexError, match="AN0..AN15"):
         adc.inputs[16] = 0
+
+
+# ------------------------------------------------------------------ DS30491: acquisition time, ADIF; C18's OpenADC
+ACQUISITION = [(0b000, 0), (0b001, 2), (0b010, 4), (0b011, 6), (0b100, 8), (0b101, 12), (0b110, 16), (0b111, 20)]
+
+
+@pytest.mark.parametrize(("acqt", "tad"), ACQUISITION, ids=[f"ACQT={code:03b}" for code, _ in ACQUISITION])
+def test_when_the_go_done_bit_is_set_the_a_d_module_continues_to_sample_for_the_selected_acquisition_time(acqt, tad):
+    """DS30491, ADCON2.ACQT2:0: the programmed acquisition time (0 = manual: the conversion begins at once), then the
+    11 TAD conversion: at Fosc/64 (TAD 1.6 us), 4 TAD give 15 TAD = 24.0 us from GO to DONE, 20 TAD 31 TAD = 49.6 us
+    (the data sheet's diagrams allow up to one TAD more for the A/D clock's phase, which the kit does not model)."""
+    _, mcu, _ = make_board(300)
+    seen = {}
+
+    def main() -> None:
+        mcu.write_name("ADCON2", 0x86 | acqt << 3)  # ADFM, ACQT, Fosc/64
+        mcu.write_name("ADCON0", 0x01)
+        mcu.write_name("ADCON0", 0x03)
+        seen["go"] = now(mcu)
+        while mcu.read_name("ADCON0") & 0x02:
+            pass
+        seen["done"] = now(mcu)
+        seen["result"] = (mcu.read_name("ADRESH") << 8) | mcu.read_name("ADRESL")
+
+    run(mcu, main)
+    tad_ps = 64 * TOSC_PS
+    assert (tad + 11) * tad_ps <= seen["done"] - seen["go"] <= (tad + 12) * tad_ps
+    assert seen["result"] == 300
+
+
+def test_when_the_conversion_is_completed_the_adif_flag_is_set_whatever_adie_says() -> None:
+    """DS30491: "the GO/DONE bit is cleared, the ADIF flag is set" at every conversion's end, with PIE1.ADIE = 0 (a
+    polling firmware sees it in PIR1); firmware clears it; an aborted conversion does not set it."""
+    _, mcu, _ = make_board(512)
+    seen = []
+
+    def main() -> None:
+        OpenADC(*OPEN_CH0)
+        seen.append(bool(PIR1bits.ADIF))
+        ConvertADC()
+        seen.append(bool(PIR1bits.ADIF))
+        while BusyADC():
+            pass
+        seen.append(bool(PIR1bits.ADIF) and not PIE1bits.ADIE)
+        PIR1bits.ADIF = 0
+        ConvertADC()
+        SFR.ADCON0 = SFR.ADCON0 & ~0x02             # abort it
+        Delay10KTCYx(1)
+        seen.append(bool(PIR1bits.ADIF))
+
+    run(mcu, main, until=10 * 10**9)
+    assert seen == [False, False, True, False]
+
+
+def test_c18_open_adc_for_the_pic18f8680_takes_config_config2_and_portconfig_with_the_adc_n_tad_masks() -> None:
+    """C18's adc.h for parts with ADCON2.ACQT: OpenADC(config, config2, portconfig). config: clock, justification and
+    acquisition time (ADC_n_TAD); config2: channel, interrupt, references; portconfig: ADC_nANA (PCFG3:0)."""
+    _, mcu, _ = make_board()
+    seen = {}
+
+    def main() -> None:
+        OpenADC(ADC_FOSC_32 & ADC_RIGHT_JUST & ADC_12_TAD, ADC_CH5 & ADC_INT_OFF & ADC_VREFPLUS_EXT
+                & ADC_VREFMINUS_VSS, ADC_6ANA)
+        seen["three"] = registers(mcu)
+        OpenADC(ADC_FOSC_RC & ADC_LEFT_JUST & ADC_0_TAD, ADC_CH0 & ADC_INT_OFF & ADC_VREFPLUS_VDD
+                & ADC_VREFMINUS_VSS, ADC_1ANA)
+        seen["manual"] = registers(mcu)
+        OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_1ANA, OPEN_CH0[1])   # the two-argument form, as before
+        seen["two"] = registers(mcu)
+
+    run(mcu, main)
+    assert seen["three"] == {"ADRESH": 0, "ADRESL": 0, "ADCON0": 0x15, "ADCON1": 0x19, "ADCON2": 0xAA}
+    assert seen["manual"] == {"ADRESH": 0, "ADRESL": 0, "ADCON0": 0x01, "ADCON1": 0x0E, "ADCON2": 0x07}
+    assert seen["two"] == {"ADRESH": 0, "ADRESL": 0, "ADCON0": 0x01, "ADCON1": 0x0E, "ADCON2": 0x86}
+
+
+def test_adc_int_on_clears_adif_and_sets_adie_and_peie_so_the_end_of_a_conversion_interrupts() -> None:
+    from appsim.chip.sfr import HIGH_VECTOR
+
+    _, mcu, _ = make_board(777)
+    results: list[int] = []
+
+    def high_isr() -> None:
+        PIR1bits.ADIF = 0
+        results.append(ReadADC())
+
+    def main() -> None:
+        PIR1bits.ADIF = 1
+        OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_4_TAD, ADC_CH0 & ADC_INT_ON & ADC_VREFPLUS_VDD & ADC_VREFMINUS_VSS,
+                ADC_1ANA)
+        results.append(SFR.PIE1 & 0x40 | SFR.INTCON & 0x40 | SFR.PIR1 & 0x40)      # ADIE, PEIE, ADIF
+        INTCONbits.GIE = 1
+        ConvertADC()
+        Delay10KTCYx(1)
+
+    mcu.run(main, {HIGH_VECTOR: high_isr})
+    mcu.sim.run(until=10 * 10**9)
+    assert mcu.process is not None and mcu.process.failure is None, mcu.process.failure_text
+    assert results == [0x40, 777]

@@ -13,7 +13,9 @@ from appsim.can.bittiming import (
     BitTimingError,
     Solution,
     calculate,
+    error_percent,
     format_table,
+    nearest,
     seed_recipe,
 )
 
@@ -297,14 +299,29 @@ def test_calculator_rejects_impossible_requests(kwargs: dict[str, float]) -> Non
         calculate(125_000, 40 * MHZ, **kwargs)
 
 
-def test_format_table_reads_like_a_bit_timing_calculator() -> None:
-    table = format_table([Solution(CLASSROOM, Fraction(125_000), Fraction(0))])
-    header, row = table.splitlines()[1:]
+def test_format_table_reads_like_a_bit_timing_calculator_in_caninitialize_s_argument_order() -> None:
+    table = format_table([Solution(CLASSROOM, Fraction(125_000), Fraction(0))], {CLASSROOM: "the workshop's"})
+    legend, header, row = table.splitlines()
+    assert legend.startswith("CANInitialize(SJW, BRP, PHSEG1, PHSEG2, PROPSEG, ...) takes the first five columns")
     assert header.split() == [
-        "BRP", "reg", "N", "Prop", "PS1", "PS2", "SJW", "SP", "%", "Error", "%", "BRGCON1", "BRGCON2", "BRGCON3"
+        "SJW", "BRP", "PHSEG1", "PHSEG2", "PROPSEG", "N", "SP", "%", "Error", "%", "BRGCON1", "BRGCON2", "BRGCON3"
     ]
-    assert row.split() == ["10", "9", "16", "3", "8", "4", "4", "75", "0", "0xC9", "0xBA", "0x03"]
+    assert row.split() == ["4", "10", "8", "4", "3", "16", "75", "0", "0xC9", "0xBA", "0x03", "the", "workshop's"]
+    assert CLASSROOM.an738_arguments == (4, 10, 8, 4, 3), "CANInitialize(4, 10, 8, 4, 3, ...)"
     assert "no setting" in format_table([])
+
+
+def test_nearest_gives_the_settings_of_the_nearest_rate_where_none_is_exact() -> None:
+    assert not calculate(33_000, 40 * MHZ)
+    solutions = nearest(33_000, 40 * MHZ)
+    rates = {s.bit_rate for s in solutions}
+    assert rates == {Fraction(40 * MHZ, 2 * 55 * 11)}, "33,057.85 bit/s: BRP 55, 11 TQ"
+    every = [Fraction(40 * MHZ, 2 * brp * n) for brp in range(1, 65) for n in range(8, 26)]
+    assert all(abs(r / 33_000 - 1) >= abs(s.error) for r in every for s in solutions), "none nearer"
+    assert solutions == calculate(33_000, 40 * MHZ, tolerance=abs(solutions[0].error))
+    assert nearest(125_000, 40 * MHZ) == calculate(125_000, 40 * MHZ), "an exact rate is its own nearest"
+    assert [error_percent(e) for e in (Fraction(0), Fraction(18, 10_000), Fraction(-1, 40_000_000))] == \
+        ["0", "+0.18", "-0.0000025"]
 
 
 # --- the seed's recipe ---------------------------------------------------------------------------------

@@ -2,17 +2,24 @@
 from __future__ import annotations
 
 from appsim.bus.controller import Mode
+from appsim.chip.sfr import current_mcu
 from appsim.firmware import *
+from appsim.firmware.runtime import CALL_CYCLES
 
 CLASSROOM = (4, 10, 8, 4, 3)
 
+
+
+def wait_tenths_of_ms(units: int) -> None:
+    """What Delay1KTCYx(units) waits, for any count: C18's takes 1..255 (0 means 256), these waits are longer."""
+    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * units)
 
 def normal_node(sends=(), mode=CAN_OP_MODE_NORMAL, rxm=CAN_CONFIG_ALL_MSG, received=None, delay_ms=0.0):
     def main():
         CANInitialize(*CLASSROOM, rxm)
         if mode != CAN_OP_MODE_NORMAL:
             CANSetOperationMode(mode)
-        Delay1KTCYx(round(delay_ms * 10))
+        wait_tenths_of_ms(round(delay_ms * 10))
         for can_id, flags in sends:
             CANSendMessage(can_id, [1, 2, 3], 3, flags)
         while True:

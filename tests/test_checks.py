@@ -144,10 +144,18 @@ def test_a_main_that_returns_gives_zero(tmp_path):
     zero_with(check("ex2", once, seed=1), "main() returned", "loop forever")
 
 
-def test_an_id_that_is_no_stations_gives_zero(tmp_path):
+def test_an_id_that_is_no_stations_fails_only_the_check_that_depends_on_the_station(tmp_path):
+    """Its board takes station 1's place: being on the bus, the period and not receiving its own frames are judged as
+    for any station; the frames' check fails, saying what is wrong in the student's names."""
     odd = copy_with(tmp_path, "ex2", "MESSAGE_ID1 = 0x100 ", "MESSAGE_ID1 = 0x105 ")
-    zero_with(check("ex2", odd, seed=1), "MESSAGE_ID1 = 0x105", "0x100, 0x110 .. 0x150")
-    zero_with(check("ex2", solution("ex2"), seed=1, message_id=0x160), "message_id = 0x160")
+    for verdict, shown in ((check("ex2", odd, seed=1), "0x105"),
+                           (check("ex2", solution("ex2"), seed=1, message_id=0x160), "0x160")):
+        assert verdict.fault is None and verdict.score == verdict.max_score - 1
+        [failed] = verdict.failed()
+        assert failed.name == "frames carry MESSAGE_ID1 and 01 02 03 ADRESH ADRESL"
+        assert f"MESSAGE_ID1 = {shown} is not a station's identifier" in failed.message
+        assert "0x100, 0x110 ... 0x150" in failed.message
+        assert f"in station 1's place (MESSAGE_ID1 = {shown}: not a station's" in verdict.checks[0].message
 
 
 # ------------------------------------------------------------------ what can be handed in

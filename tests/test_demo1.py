@@ -16,7 +16,9 @@ from appsim.board.app023 import APP023
 from appsim.board.usbcdc import UsbCdc
 from appsim.bus.wire import Bus
 from appsim.chip.mcu import PIC18F8680
+from appsim.chip.sfr import current_mcu
 from appsim.firmware import *
+from appsim.firmware.runtime import CALL_CYCLES
 from appsim.sim import PS_PER_SECOND, Simulator
 
 KIT = Path(__file__).resolve().parent.parent
@@ -30,15 +32,20 @@ FRAME_LINE = re.compile(r"^ *(\d+\.\d{6})  0x([0-9A-F]{3}|[0-9A-F]{8})  (STD|XTD
 LOST_LINE = re.compile(r"^# lost (\d+) frames? \(queue full\)$")
 
 
+
+def wait_tenths_of_ms(units: int) -> None:
+    """What Delay1KTCYx(units) waits, for any count: C18's takes 1..255 (0 means 256), these waits are longer."""
+    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * units)
+
 def sender(frames, *, start_ms: float, gap_ms: float):
     """Firmware sending `frames` (id, flags, data) one after the other, `gap_ms` apart."""
     def main():
         CANInitialize(*CLASSROOM, CAN_CONFIG_ALL_MSG)
-        Delay1KTCYx(round(start_ms * 10))
+        wait_tenths_of_ms(round(start_ms * 10))
         for can_id, flags, data in frames:
             while not CANSendMessage(can_id, data, len(data), flags):
                 pass
-            Delay1KTCYx(round(gap_ms * 10))
+            wait_tenths_of_ms(round(gap_ms * 10))
         while True:
             if CANIsRxReady():
                 CANReceiveMessage()
@@ -218,13 +225,20 @@ def test_appsim_monitor_runs_your_own_demo1_and_its_summary_says_what_became_of_
                          r"  (\d+) \(\d+%\) listed by the monitor on its serial port\n"
                          r"  (\d+) \(\d+%\) lost on the CAN side: (\d+) when its RAM queue was full \(its '# lost' "
                          r"lines\), (\d+) when RXB0 and RXB1 were full\n"
+                         r"(    why: .*\n)?"
                          r"(?:  (\d+) \(\d+%\) neither listed nor said lost.*\n)?"
                          r"USB-CDC port socket")
     summaries = {name: summary.search(out) for name, out in runs.items()}
-    frames, listed, lost, queue, ecan, neither = (int(n or 0) for n in summaries["solution"].groups())
-    assert frames == 401 and listed > 90 and lost == queue > 250 and ecan == 0 and neither < 20
-    frames, listed, lost, queue, ecan, neither = (int(n or 0) for n in summaries["silent"].groups())
-    assert frames == 401 and lost == 0 and neither > 250, "dropped without a word: the summary says so"
+    frames, listed, lost, queue, ecan, why, neither = summaries["solution"].groups()
+    assert int(frames) == 401 and int(listed) > 90 and int(lost) == int(queue) > 250 and ecan == "0"
+    assert int(neither or 0) < 20
+    assert re.fullmatch(r"    why: a frame's line is about \d+ bytes and the USART sends 1,923 bytes a second \(19,231 "
+                        r"baud, 8N1\), so the monitor can list about 3\d frames a second, while the bus carried 13\d a "
+                        r"second: its RAM queue fills, and it says '# lost N'\. That is the APP023's own limit, as on "
+                        r"the real board, not a fault of the firmware \(docs/monitor-format\.md\)\n", why), why
+    frames, listed, lost, queue, ecan, why, neither = summaries["silent"].groups()
+    assert int(frames) == 401 and lost == "0" and int(neither) > 250, "dropped without a word: the summary says so"
+    assert why is None, "nothing said lost, nothing to explain"
 
 
 def test_appsim_monitor_shows_its_progress_on_a_terminal():

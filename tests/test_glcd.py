@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from appsim.board.app023 import APP023
-from appsim.board.glcd import CHARACTER_CYCLES, NotInitialised
+from appsim.board.glcd import CHARACTER_CYCLES, GLASS_MARGIN_PX, NotInitialised
 from appsim.firmware import GLCD_Initial, putcGLCD, putrsGLCD, putsGLCD, setcurGLCD
 
 TCY_PS = 100_000
@@ -171,5 +171,25 @@ def test_picture_is_yellow_green_with_dark_pixels_when_on_and_grey_when_off(worl
 
     assert colours(off) == {(0x8E, 0x9A, 0x86)}
     assert colours(on) == {(0xB5, 0xD3, 0x34)}, "a blank middle of the screen shows the backlight"
-    top = on[on.shape[0] // 2 - 100:on.shape[0] // 2 - 80]
+    top = on[:on.shape[0] // 3]
     assert {(0x1D, 0x2A, 0x10)} <= {tuple(round(c * 255) for c in p[:3]) for row in top for p in row}
+
+
+@pytest.mark.parametrize("picture", ["png", "save_png"])
+def test_the_text_keeps_off_the_edge_of_the_glass(world, tmp_path, picture):
+    """Line 1 from column 1, in the notebook's PNG and in the framed picture: lit glass all round the dot matrix."""
+    board = show(world, lambda: (GLCD_Initial(), putrsGLCD("#" * 21), setcurGLCD(8, 1), putrsGLCD("#" * 21)))
+    if picture == "png":
+        (tmp_path / "lcd.png").write_bytes(board.glcd.png(scale=1))
+        image, scale = matplotlib.image.imread(tmp_path / "lcd.png"), 1
+    else:
+        image, scale = matplotlib.image.imread(board.glcd.save_png(tmp_path / "lcd.png", scale=4)), 4
+    rgb = np.round(image[..., :3] * 255).astype(int)
+    lit = np.argwhere((rgb == (0xB5, 0xD3, 0x34)).all(axis=-1))
+    ink = np.argwhere((rgb == (0x1D, 0x2A, 0x10)).all(axis=-1))
+    assert len(ink) and len(lit)
+    (top, left), (bottom, right) = lit.min(axis=0), lit.max(axis=0)
+    (ink_top, ink_left), (ink_bottom, ink_right) = ink.min(axis=0), ink.max(axis=0)
+    margin = GLASS_MARGIN_PX * scale - 1                # give or take a pixel of the picture's scaling
+    assert ink_top - top >= margin and ink_left - left >= margin, "glass above and left of line 1, column 1"
+    assert bottom - ink_bottom >= margin and right - ink_right >= margin

@@ -58,7 +58,7 @@ def build_class(root: Path) -> None:
                  "ex3": firmware("return")},
         "frank": {"ex1": firmware("scale()", helpers="\ndef scale():\n    return 1023 // 0\n"),
                   "ex2": solution("ex2")},
-        "gina": {"ex1": firmware("while True:\n    pass"), "ex2": solution("ex2")},
+        "gina": {"ex1": firmware("spins = 0\nwhile True:\n    spins += 1"), "ex2": solution("ex2")},
         "hank": {"ex1": firmware("hoard = []\nwhile True:\n    hoard.append(bytearray(1 << 20))")},
         "ivan": {"ex1": firmware("import os\nos.fork()\nwhile True:\n    CANIsRxReady()"),
                  "ex2": firmware("import subprocess\nsubprocess.run(['true'])"),
@@ -144,7 +144,6 @@ def test_monkeypatching_the_checks_and_printing_fake_results_change_nothing(grad
     ("ivan", "ex1", "exception", "os.fork()"),
     ("ivan", "ex2", "exception", "Operation not permitted"),
     ("ivan", "ex3", "exception", "socket.create_connection"),
-    ("mia", "ex3", "station", "MESSAGE_ID1 = 0x160 is not a station's"),
 ])
 def test_each_fault_is_zero_marks_with_what_it_was(graded, name, ex, fault, words):
     _, records, _ = graded
@@ -182,6 +181,21 @@ def test_the_station_is_decided_from_the_firmware_as_loaded_as_check_decides_it(
         local = check(ex, base / "class" / "mia" / EXERCISE_FILES[ex], seed=SEED)
         assert [(c.name, c.passed) for c in local.checks] == [(c["name"], c["passed"]) for c in result["checks"]]
     assert "MESSAGE_ID1 = 0x088" in first_message(records, "mia", "ex1")
+
+
+def test_an_identifier_of_no_station_costs_only_the_checks_that_depend_on_the_station(graded):
+    """Ex3 with MESSAGE_ID1 = 0x160: its board takes station 1's place; receiving, the LCD and the filters are judged
+    as for any station, and the one check of what it sends fails, in its own names (it used to get 0/5)."""
+    base, records, _ = graded
+    result = exercise(records, "mia", "ex3")
+    assert result["fault"] is None and result["score"] == result["max_score"] - 1
+    [failed] = [c for c in result["checks"] if not c["passed"]]
+    assert failed["name"] == "keeps sending MESSAGE_ID1 on Timer1"
+    assert failed["message"].startswith("MESSAGE_ID1 = 0x160 is not a station's identifier: the classroom's stations "
+                                        "use 0x100, 0x110 ... 0x150")
+    assert "Otherwise right" in failed["message"] and "0x160 DATA 01 02 03" in failed["message"]
+    local = check("ex3", base / "class" / "mia" / "ex3.py", seed=SEED).to_dict()
+    assert local["checks"][1:] == result["checks"][1:] and local["fault"] is None
 
 
 def test_standard_library_imports_work_as_in_appsim_check(graded):
@@ -355,12 +369,18 @@ def test_a_path_that_holds_no_class_is_named_with_what_a_submission_should_hold(
     assert str(path) in str(error.value) and "ex1.py" in str(error.value)
 
 
-def test_two_submissions_of_one_name_are_refused_naming_both(tmp_path):
+def test_two_submissions_of_one_name_are_each_graded_under_a_name_of_their_own(tmp_path):
+    """A folder alice/ and an upload alice.zip (a classmate's, named after her): neither takes the name from the other,
+    each record says where it came from, and a second run gives them the same names (so it resumes)."""
     small_class(tmp_path / "class", ("alice",))
     with zipfile.ZipFile(tmp_path / "class" / "alice.zip", "w") as archive:
-        archive.writestr("ex1.py", SOLUTION_EX1)
-    with pytest.raises(GradeError, match="two submissions are named 'alice'"):
-        find_submissions([tmp_path / "class"])
+        archive.writestr("ex1.py", STARTER_EX1)
+    found = find_submissions([tmp_path / "class"])
+    names = [s.name for s in found]
+    assert len(names) == 2 and all(n.startswith("alice~") for n in names) and len(set(names)) == 2
+    assert all("2 submissions would be named 'alice'" in s.note for s in found)
+    assert {s.origin for s in found} == {"class/alice", "class/alice.zip"}
+    assert [s.name for s in find_submissions([tmp_path / "class"])] == names
 
 
 def test_ctrl_c_ends_with_one_line_exit_130_and_keeps_what_was_graded(tmp_path):
@@ -396,13 +416,28 @@ def _graded_alone(tmp_path: Path, exercise: str, source: str, limits: Limits) ->
 
 
 def test_a_firmware_that_keeps_the_grader_busy_is_stopped_by_the_grader_s_cpu_time(tmp_path):
-    """A write and a read on every turn of the loop, never waiting: each read crosses to the board. The grader's own
-    CPU time for it counts against the limit, so it ends as "time" with its reason, long before the wall time."""
+    """A write and a read on every turn of the loop, never waiting: each read crosses to the board (the write changes
+    the board, so no read-ahead answers it). The grader's own CPU time for it counts against the limit, so it ends as
+    "time" with its reason, long before the wall time. Graded as Demo1, the longest exercise (1 simulated second:
+    2.5 million crossings, about 20 s of the grader's CPU on the test machine); Ex1's 30 ms took it 0.7 s, under the
+    limit, once a round trip cost 15 us, and the exercise was judged instead."""
     chatty = firmware("while True:\n    SFR.TXB0D0 = 1\n    SFR.TXB0D0")
     started = time.monotonic()
-    result = _graded_alone(tmp_path, "ex1", chatty, Limits(time_s=1, stall_s=5, wall_time_s=120))
+    result = _graded_alone(tmp_path, "demo1", chatty, Limits(time_s=1, stall_s=5, wall_time_s=120))
     assert result["fault"] == "time" and result["score"] == 0
     assert "CPU time limit: simulating the board for this firmware took the grader more than 1 s" in \
+        result["checks"][0]["message"]
+    assert time.monotonic() - started < 60
+
+
+def test_a_firmware_that_computes_in_its_own_process_is_stopped_by_its_own_cpu_time(tmp_path):
+    """Computing between register reads (a time-varying one, so the loop never parks and is never stalled), the
+    firmware spends its own process's CPU, not the grader's: the kernel's CPU limit ends it as "time", saying so."""
+    thinker = firmware("while True:\n    sum(range(10 ** 6))\n    SFR.TMR1L")
+    started = time.monotonic()
+    result = _graded_alone(tmp_path, "ex1", thinker, Limits(time_s=1, stall_s=5, wall_time_s=120))
+    assert result["fault"] == "time" and result["score"] == 0
+    assert "CPU time limit: the firmware computed for more than 1 s in its own process" in \
         result["checks"][0]["message"]
     assert time.monotonic() - started < 60
 
@@ -471,7 +506,8 @@ def test_a_sandbox_left_waiting_past_its_boot_time_costs_the_next_student_nothin
 def test_each_exercise_of_a_submission_runs_in_a_fresh_process_of_its_sandbox():
     """A submission's exercises share its sandbox, one fresh process each: what one firmware leaves in its own process
     (a patched library) is gone for the next, as it is in `appsim check`."""
-    patcher = firmware("import appsim.firmware.an738 as an738\nan738.CANSendMessage = None\nwhile True:\n    pass")
+    patcher = firmware("import appsim.firmware.an738 as an738\nan738.CANSendMessage = None\nspins = 0\n"
+                       "while True:\n    spins += 1")
     source = (SOLUTIONS / EXERCISE_FILES["ex1"]).read_bytes()
     with Sandbox(isolation(), Limits(stall_s=1)) as sandbox:
         honest = grade_exercise(sandbox, "ex1", "ex1.py", source, SEED, None, owner="carol")
@@ -487,7 +523,7 @@ def test_a_firmware_that_cannot_be_told_apart_in_its_sandbox_still_ends_when_its
     """Where the grader cannot tell the firmware's process apart (no number for it outside its sandbox), it ends the
     whole sandbox when the firmware's time is up, and the next exercise gets a fresh one. The grader hung there once,
     its watchdog waiting on itself: a process of its own here, so that a hang fails this test instead of hanging it."""
-    spinner_source = firmware("while True:\n    pass").encode()
+    spinner_source = firmware("spins = 0\nwhile True:\n    spins += 1").encode()
     script = tmp_path / "grade_spinner.py"
     script.write_text(f"""import json
 from appsim.workshop.grading.worker import grade_exercise

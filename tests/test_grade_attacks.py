@@ -562,7 +562,7 @@ def _attack():
 ''')
 DISK_HIDDEN_FOLDER = attack("_attack()", top=r'''
 def _attack():
-    """The folder the sandbox covers to hide a copy of the solutions: what covers it, can it be written?"""
+    """The folder of a copy of the solutions on the grader's import path: is it there, can it be written?"""
     folder, written = _CTX["hidden"], 0
     for number in range(8):
         with open(f"{folder}/fill{number}", "wb") as file:
@@ -623,9 +623,72 @@ def _attack():
 ''')
 
 # ---------------------------------------------------------------------- spin without a word to the board
-SPIN_PASS = attack("while True:\n    pass")
+SPIN_PASS = attack("_spins = 0\nwhile True:\n    _spins += 1")     # `while True: pass` waits for an interrupt
 SPIN_SLEEP = attack("_time.sleep(3600)")
 SPIN_AT_LOAD = attack("", top="while True:\n    pass\n")
+
+# ---------------------------------------------------------------------- what the sandbox holds
+READ_ANSWER_KEYS = attack("_attack()", top=READ_HELPERS + r'''
+def _attack():
+    """An answer key (the reference Ex1) on the grader's import path and in its current folder: by import, by path."""
+    import importlib
+    for module in _CTX["answer_modules"]:
+        try:
+            stolen = importlib.import_module(module).main
+        except ImportError:
+            continue
+        stolen()
+    for path in _CTX["answer_files"]:
+        try:
+            source = _read(path)
+        except OSError:
+            continue
+        found = {"__name__": "stolen"}
+        exec(compile(source, "stolen.py", "exec"), found)
+        found["main"]()
+''')
+
+READ_MOUNT_TABLE = attack("_attack()", top=r'''
+def _attack():
+    """The mount table names where each bind comes from: none of the grader's own folders may show."""
+    with open("/proc/self/mountinfo") as table:
+        seen = table.read()
+    named = [place for place in _CTX["host_paths"] if place in seen]
+    if named:
+        raise RuntimeError("the mount table names " + ", ".join(named))
+''')
+
+# ---------------------------------------------------------------------- make the grader look at fault
+# A byte for a busy USART only fills TXREG: the read-ahead tells the child what PIR1 reads after that write. The child
+# writes, then spends the time it takes the USART to finish (which sets TXIF), and claims the value foretold for
+# before: the board reads otherwise. It broke the protocol (it spent past its budget): never the grader's mistake.
+WIRE_FORETOLD_LIE = attack("_attack()", top=r'''
+def _attack():
+    mcu = _current_mcu()
+    SFR.SPBRG = 129
+    SFR.TXSTA = 0x24
+    SFR.RCSTA = 0x90
+    SFR.TXREG = 0x41
+    SFR.PIR1
+    foretold = mcu._after.get(0xFAD) if mcu._ahead is not None else None
+    if foretold is None:
+        raise RuntimeError("no write was foretold: the attack could not be made")
+    mcu.flush()
+    _say(_message(b"B" + _struct.pack("<cHB", b"W", 0xFAD, 0x42) + _struct.pack("<cQ", b"S", 20000)
+                  + _struct.pack("<cHqB", b"r", 0xF9E, 0, foretold[0xF9E]) + _struct.pack("<cHq", b"R", 0xF9E, 0)))
+    _time.sleep(60)
+''')
+WIRE_FAKE_ERROR = forged('_message(b"Z" + _json.dumps(["RuntimeError", "the grader failed"]).encode())')
+
+# ---------------------------------------------------------------------- make the grader keep more
+# Every read from a new call site (its library patched): a polling loop that never repeats itself.
+SITES_WITHOUT_END = attack("_attack()", top=r'''
+def _attack():
+    import itertools
+    from appsim.workshop.sandbox import child
+    counter = itertools.count()
+    child.firmware_location = lambda: next(counter)
+''')
 
 
 # ====================================================================== the class, and what each attack must show
@@ -680,7 +743,8 @@ ATTACKS = {
     "disk_huge_file": (DISK_HUGE_FILE, fault("exception", "Read-only file system")),
     "disk_fill": (DISK_FILL, AS_STARTER),
     "disk_many_files": (DISK_MANY_FILES, fault("exception", "Read-only file system")),
-    "disk_hidden_folder": (DISK_HIDDEN_FOLDER, fault("exception", "Read-only file system")),
+    "disk_hidden_folder": (DISK_HIDDEN_FOLDER, fault("exception", "No such file or directory",
+                                                     "Read-only file system")),
     "flood_output": (FLOOD, AS_STARTER),
     "memory_hoard": (MEMORY_HOARD, fault("memory", "memory limit")),
     "memory_caught": (MEMORY_CAUGHT, AS_STARTER),
@@ -688,6 +752,11 @@ ATTACKS = {
     "spin_pass": (SPIN_PASS, fault("stalled", "stopped answering")),
     "spin_sleep": (SPIN_SLEEP, fault("stalled", "stopped answering")),
     "spin_at_load": (SPIN_AT_LOAD, fault("stalled", "stopped answering")),
+    "read_answer_keys": (READ_ANSWER_KEYS, AS_STARTER),
+    "read_mount_table": (READ_MOUNT_TABLE, AS_STARTER),
+    "wire_foretold_lie": (WIRE_FORETOLD_LIE, wire_fault("a read of register 0xF9E it answered itself")),
+    "wire_fake_error": (WIRE_FAKE_ERROR, wire_fault("a message of kind b'Z' while running")),
+    "sites_without_end": (SITES_WITHOUT_END, AS_STARTER),
 }
 
 # A submission with more than Ex1: the attack above in its Ex1, the solution in its Ex2 (which must earn full marks).
@@ -810,11 +879,30 @@ def site(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def attacked(tmp_path_factory, site):
+def answer_keys(tmp_path_factory):
+    """An instructor's course folder on the grader's import path, and another as its current folder, each holding an
+    answer key (the reference Ex1): the sandbox must not give them."""
+    on_path, here = tmp_path_factory.mktemp("course_on_path"), tmp_path_factory.mktemp("course_here")
+    (on_path / "answers_on_path.py").write_text(solution("ex1"))
+    (here / "answers_here.py").write_text(solution("ex1"))
+    sys.path.insert(min(2, len(sys.path)), str(on_path))
+    yield {"answer_modules": ["answers_on_path", "answers_here"],
+           "answer_files": [str(on_path / "answers_on_path.py"), str(here / "answers_here.py")],
+           "folders": [on_path, here], "here": here}
+    sys.path.remove(str(on_path))
+
+
+@pytest.fixture(scope="module")
+def attacked(tmp_path_factory, site, answer_keys):
     root = tmp_path_factory.mktemp("attacked")
     write_class(root / "class", HONEST)
     results = root / "grades.jsonl"
     hidden = site / "appsim" / "workshop" / "solutions"
+    import appsim
+    host_paths = [Path(appsim.__file__).resolve().parent.parent, root.resolve(), Path.cwd().resolve(), site.resolve(),
+                  *(f.resolve() for f in answer_keys["folders"])]
+    if sys.prefix != sys.base_prefix:
+        host_paths.append(Path(sys.prefix).resolve())   # the venv (outside one, the prefix is the runtime's own)
     context = {        # what a student could know or guess of the grader's machine
         "grader_pid": os.getpid(), "grader_pgid": os.getpgrp(), "seed": SEED,
         "memory_mb": LIMITS.memory_mb, "file_mb": LIMITS.file_mb,
@@ -824,6 +912,8 @@ def attacked(tmp_path_factory, site):
         "class": str(root / "class"), "hidden": str(hidden),
         "handles": {str(p): h for p in (SOLUTIONS / "ex1.py", root / "class" / "alice_full" / "ex1.py")
                     if (h := file_handle(p)) is not None},
+        "answer_modules": answer_keys["answer_modules"], "answer_files": answer_keys["answer_files"],
+        "host_paths": [str(p) for p in host_paths if str(p) != "/"],
     }
     write_class(root / "class", {name: {"ex1": source.replace("@CTX@", "_CTX = " + repr(context))}
                                  for name, (source, _) in ATTACKS.items()})
@@ -831,7 +921,9 @@ def attacked(tmp_path_factory, site):
                                         for exercise, text in files.items()} for name, files in OWN_SANDBOX.items()})
     before = folder_digest(root / "class")
     secret = secrets.token_hex(16)
-    seen = graded_run(root, secret=secret, mark=secrets.token_hex(8))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.chdir(answer_keys["here"])
+        seen = graded_run(root, secret=secret, mark=secrets.token_hex(8))
     return {**seen, "root": root, "secret": secret, "before": before, "after": folder_digest(root / "class")}
 
 

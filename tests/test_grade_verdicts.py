@@ -26,7 +26,36 @@ def firmwares() -> dict[str, tuple[str, str]]:
         found[f"starter_{exercise}"] = (exercise, (STARTERS / EXERCISE_FILES[exercise]).read_text())
     for mistake in MISTAKES:
         found[f"mistake_{mistake.name}"] = (mistake.exercise, edited_source(mistake))
+    for name, (exercise, edits) in ODD.items():
+        source = (SOLUTIONS / EXERCISE_FILES[exercise]).read_text()
+        for old, new in edits:
+            assert source.count(old) == 1, (name, old)
+            source = source.replace(old, new)
+        found[f"odd_{name}"] = (exercise, source)
     return found
+
+
+# Legal but odd: what the sandbox once judged otherwise than `appsim check` (an IntEnum station was station 1, a 2 MB
+# LCD text broke the protocol, a station-less identifier scored 0), or what a check once crashed on (a bus the
+# master's 0x088 never got through).
+ENUM = "import enum\n\n\nclass Station(enum.IntEnum):\n    ONE = 0x100\n    FOUR = 0x130\n\n\n"
+INDEX = "class Four:\n    def __index__(self):\n        return 0x120\n\n\n"
+ODD = {
+    "intenum_station": ("ex2", [("MESSAGE_ID1 = 0x100", ENUM + "MESSAGE_ID1 = Station.FOUR")]),
+    "index_station": ("ex3", [("MESSAGE_ID1 = 0x100", INDEX + "MESSAGE_ID1 = Four()")]),
+    "string_station": ("ex2", [("MESSAGE_ID1 = 0x100", "MESSAGE_ID1 = '0x130'")]),
+    "huge_identifier": ("ex2", [("MESSAGE_ID1 = 0x100", "MESSAGE_ID1 = 1 << 70")]),
+    "no_station_ex2": ("ex2", [("MESSAGE_ID1 = 0x100", "MESSAGE_ID1 = 0x160")]),
+    "no_station_ex6": ("ex6", [("MESSAGE_ID1 = 0x100", "MESSAGE_ID1 = 0x160")]),
+    "no_station_rtr": ("ex5", [("RTR_ID = 0x81", "RTR_ID = 0x87")]),
+    "lcd_2_mb": ("ex1", [("    GLCD_Initial()\n", "    GLCD_Initial()\n    putsGLCD('Z' * (2 << 20))\n")]),
+    "big_data": ("ex2", [("TxData = [0x01, 0x02, 0x03, 0x00, 0x00]", "TxData = [0x01, 0x02, 0x03, 0x00, 0x00] + "
+                                                                       "[0] * 3_000_000")]),
+    "bus_hog_ex4": ("ex4", [("def main():\n", "def main():\n    CANInitialize(4, 10, 8, 4, 3, "
+                                                "CAN_CONFIG_VALID_STD_MSG)\n    while True:\n        "
+                                                "CANSendMessage(0, [0] * 8, 8, CAN_TX_PRIORITY_0 & "
+                                                "CAN_TX_STD_FRAME)\n")]),
+}
 
 
 @pytest.fixture(scope="module")

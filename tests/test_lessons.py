@@ -30,7 +30,7 @@ from appsim.can.bits import INTERMISSION_BITS, encode, encode_annotated, frame_b
 from appsim.can.bittiming import IPT_TQ, SEGMENT_MAX_TQ, SJW_MAX_TQ, BitTiming, calculate, seed_recipe
 from appsim.can.frame import STANDARD_ID_MAX, CanFrame
 from appsim.chip.ecan.acceptance import id_pattern, passing_ids
-from appsim.chip.mcu import FOSC_HZ
+from appsim.chip.mcu import FOSC_HZ, PIC18F8680, SFR_ACCESS_CYCLES
 from appsim.chip.usart import PC_BAUD
 from appsim.firmware import (
     CAN_CONFIG_STD_MSG,
@@ -54,6 +54,7 @@ from appsim.firmware import (
 )
 from appsim.firmware.loader import load_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
+from appsim.watchdog import WATCHDOG_SECONDS
 from appsim.workshop import plots
 from appsim.workshop.checks import check, check_names
 from appsim.workshop.checks.ex4 import before_the_first_0x088
@@ -211,6 +212,12 @@ def test_the_physical_layer_numbers_are_the_sources_and_the_picture_draws_them()
     assert [canh.get_ydata()[i] - canl.get_ydata()[i] for i in range(20)] == [2.0 * (1 - level) for level in levels]
     assert len([p for p in bus.patches if p.get_gid() == "terminator"]) == 2
     assert "60 Ω" in bus.get_title()
+    figure.canvas.draw()
+    legend = wires.get_legend().get_window_extent()
+    box = wires.get_window_extent()
+    assert box.x0 < legend.x0 and legend.x1 < box.x1 and box.y0 < legend.y0 and legend.y1 < box.y1, "inside the plot"
+    lowest = wires.transData.transform((0, min(min(canh.get_ydata()), min(canl.get_ydata()))))[1]
+    assert legend.y1 < lowest, "below both wires: the legend hides no level"
     plt.close(figure)
 
 
@@ -318,6 +325,13 @@ def wire_bits_of(frame: CanFrame, *fields: str) -> int:
     return sum(1 for bit in encode_annotated(frame) if bit.field in fields and not bit.stuff)
 
 
+def acquiring_4_tad_at_fosc_64() -> tuple[int, int]:
+    """The kit's conversion time with ADCON2.ACQT = 4 TAD at Fosc/64, and one TAD (the data sheet allows one more)."""
+    mcu = PIC18F8680(Simulator(), "adc")
+    mcu.write_name("ADCON2", 0x80 | 0b010 << 3 | 0b110)
+    return mcu.adc.conversion_ps(), 64 * PS_PER_SECOND // FOSC_HZ
+
+
 Claim = Callable[[dict], str]
 """How the kit computes a quantity the prose states, from the notebook's namespace where that prose stands."""
 
@@ -400,6 +414,10 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "0.16 %": lambda ns: percent(round(Fraction(demo1_lines()['usart'].baud) / PC_BAUD - 1, 4)),
     },
     "differences.md": {
+        "200 ns": lambda ns: f"{SFR_ACCESS_CYCLES * 4 * 10**9 // FOSC_HZ} ns",     # the 2 cycles of one access
+        "2 s": lambda ns: f"{WATCHDOG_SECONDS:g} s",
+        "24 µs": lambda ns: micro(Fraction(acquiring_4_tad_at_fosc_64()[0], PS_PER_SECOND)),
+        "25.6 µs": lambda ns: micro(Fraction(sum(acquiring_4_tad_at_fosc_64()), PS_PER_SECOND)),
         "32 bits": lambda ns: f"{wire_bits_of(EXTENDED_FRAME, 'ID', 'SRR', 'IDE', 'RTR')} bits",
         "132 bits": lambda ns: f"{max_frame_bits(8)} bits",
         "11 bits": lambda ns: f"{BUS_IDLE_BITS} bits",

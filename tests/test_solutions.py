@@ -234,3 +234,48 @@ def test_reading_past_a_short_frame_is_reported_in_the_workshops_words(tmp_path)
                                     "<< 8) | RxData[4]))`): IndexError: the frame had 1 data byte; check DataLen "
                                     "before reading RxData[3]")
     assert all(board.mcu.process.failure is None for board in room.boards[2:]), "the other stations go on"
+
+
+# ------------------------------------------------------------------ the interrupt-driven solutions
+def test_a_classroom_of_interrupt_driven_ex6_stations_answers_every_poll_from_the_receive_routine():
+    from appsim.workshop.course import SOLUTIONS
+
+    room = classroom(6, seed=61, firmware_dir=SOLUTIONS / "interrupts")
+    room.run(1.33)
+    frames = room.bus.frames()
+    for k, board in room.stations.items():
+        own = 0x100 + 0x10 * (k - 1)
+        answers = [i for i, e in enumerate(frames) if e.sender == board.name]
+        polls = [i for i, e in enumerate(frames) if e.frame.remote and e.frame.can_id == own]
+        assert len(answers) == len(polls) >= 2
+        for answer, poll in zip(answers, polls, strict=True):
+            assert answer == poll + 1, "the answer follows its poll"
+            assert frames[answer].frame.data == payload(board.adc.potentiometer)
+        assert board.glcd.line(7) == f"SENT A/D {board.adc.potentiometer:4d}"
+        assert board.mcu.interrupts.armed, "GIE set: it runs interrupt-driven"
+
+
+@pytest.mark.parametrize("seed", [202, 7])
+@pytest.mark.parametrize("exercise", ["ex1", "ex3", "ex6"])
+def test_the_interrupt_driven_solutions_pass_every_check_of_their_exercise(exercise, seed, monkeypatch):
+    from appsim.workshop.checks import check
+    from appsim.workshop.course import SOLUTIONS
+
+    monkeypatch.chdir(SOLUTIONS / "interrupts")
+    verdict = check(exercise, f"{exercise}.py", seed=seed)
+    assert verdict.score == verdict.max_score, verdict
+
+
+def test_grading_the_solutions_folder_grades_its_own_files_and_not_the_interrupt_driven_ones_below():
+    """`appsim grade solutions/` is one submission of solutions/ex1.py .. (solutions/interrupts/ is not a classmate
+    nor a second copy); `appsim grade solutions/interrupts` is one of its three."""
+    from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS
+    from appsim.workshop.grading.submissions import find_submissions
+
+    [regular] = find_submissions([SOLUTIONS])
+    assert regular.files == {exercise: (name, (SOLUTIONS / name).read_bytes())
+                             for exercise, name in EXERCISE_FILES.items()}
+    [interrupts] = find_submissions([SOLUTIONS / "interrupts"])
+    assert {exercise: name for exercise, (name, _) in interrupts.files.items()} == {
+        "ex1": "ex1.py", "ex3": "ex3.py", "ex6": "ex6.py"}
+    assert interrupts.files["ex6"][1] == (SOLUTIONS / "interrupts" / "ex6.py").read_bytes()

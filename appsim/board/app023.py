@@ -4,7 +4,7 @@ The potentiometer on AN0, the GLCD, DSW2 (routing the EUSART's pins, read on RJ0
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -14,11 +14,12 @@ from appsim.board.glcd import GLCD, attach_glcd
 from appsim.bus.wire import Bus
 from appsim.chip.adc import ADC
 from appsim.chip.ecan.controller import ECAN
-from appsim.chip.interrupts import PeripheralInterrupts
-from appsim.chip.mcu import PIC18F8680
+from appsim.chip.interrupts import Interrupts
+from appsim.chip.mcu import PIC18F8680, Routine
 from appsim.chip.ports import PortJ
 from appsim.chip.timer1 import Timer1
 from appsim.chip.usart import USART, SerialEnd
+from appsim.firmware.interrupts import routines as interrupt_routines
 from appsim.firmware.loader import load_firmware
 from appsim.sim import Process
 
@@ -31,7 +32,7 @@ class APP023:
         self.mcu: PIC18F8680 = bus.attach(PIC18F8680(bus.sim, name))
         self.adc: ADC = self.mcu.adc
         self.adc.potentiometer = potentiometer
-        self.interrupts: PeripheralInterrupts = self.mcu.interrupts
+        self.interrupts: Interrupts = self.mcu.interrupts
         self.timer1: Timer1 = self.mcu.timer1
         self.usart: USART = self.mcu.usart
         self.portj: PortJ = self.mcu.portj
@@ -51,11 +52,13 @@ class APP023:
     def ecan(self) -> ECAN:
         return self.mcu.ecan
 
-    def run(self, firmware: str | Path | ModuleType | Callable[[], Any]) -> Process:
-        """Program the board with a firmware file, module or `main` function, and start it."""
+    def run(self, firmware: str | Path | ModuleType | Callable[[], Any],
+            routines: Mapping[int, Routine] | None = None) -> Process:
+        """Program the board with a firmware file, module or `main` function, and start it: a file's or module's
+        interrupt routines are those it marks (@interrupt, @interruptlow); a bare `main` has `routines`, if any."""
         if isinstance(firmware, (str, Path)):
             firmware = load_firmware(firmware)
         if isinstance(firmware, ModuleType):
             self.firmware = firmware
-            return self.mcu.run(firmware.main)
-        return self.mcu.run(firmware)
+            return self.mcu.run(firmware.main, interrupt_routines(firmware))
+        return self.mcu.run(firmware, routines)

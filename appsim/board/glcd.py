@@ -30,6 +30,7 @@ CHARACTER_CYCLES = 6 * BYTE_CYCLES          # 5 glyph columns + 1 blank column: 
 CURSOR_CYCLES = 2 * BYTE_CYCLES             # set page (line) and column address
 INITIAL_CYCLES = 10 * BYTE_CYCLES + WIDTH_PX * LINES * BYTE_CYCLES   # set-up commands, then clear 1024 bytes
 HISTORY_WRITES = 10_000                     # the writes `history` keeps, the latest (a long run's would fill memory)
+GLASS_MARGIN_PX = 4                         # lit glass around the dot matrix, in pixels: text never touches its edge
 
 
 class Write(NamedTuple):
@@ -77,13 +78,15 @@ class GLCD:
         self.mcu.spend_cycles(CURSOR_CYCLES)
         self._line, self._column = line - 1, column - 1
 
-    def write(self, codes: Sequence[int]) -> None:
-        """Draw character `codes` at the cursor and advance, taking the driver's time; past column 21 is cut off."""
+    def write(self, codes: Sequence[int], *, length: int | None = None) -> None:
+        """Draw character `codes` at the cursor and advance, taking the driver's time; past column 21 is cut off.
+        `length`: how many the firmware wrote, of which `codes` are the first (all that can show: the grader's
+        sandbox sends no more)."""
         self._initialised()
         line, column = self._line, self._column
         drawn = list(codes[:max(0, COLUMNS - column)])
         self._codes[line][column:column + len(drawn)] = drawn
-        self._column += len(codes)
+        self._column += len(codes) if length is None else length
         self.mcu.spend_cycles(len(drawn) * CHARACTER_CYCLES)
         text = "".join(font5x7.shows_as(code) for code in drawn)
         self.history.append(Write(self.mcu.sim.time(), line + 1, column + 1, text))
@@ -125,21 +128,24 @@ class GLCD:
                     screen[y:y + font5x7.HEIGHT, x + dx] = (bits >> rows) & 1
         return screen
 
-    def colours(self) -> np.ndarray:
-        """The 64 x 128 pixels as RGB bytes: dark ink on the yellow-green backlight, grey-green when it is off."""
+    def colours(self, margin: int = 0) -> np.ndarray:
+        """The 64 x 128 pixels as RGB bytes: dark ink on the yellow-green backlight, grey-green when it is off; with
+        `margin` pixels of the lit glass around them."""
         import numpy as np
 
         on = self.initialised and self.backlight
         background, ink = ("#b5d334", "#1d2a10") if on else ("#8e9a86", "#3c4436")
-        return np.where(self.pixels()[..., None], _rgb(ink), _rgb(background)).astype(np.uint8)
+        pixels = np.pad(self.pixels(), margin, constant_values=False)
+        return np.where(pixels[..., None], _rgb(ink), _rgb(background)).astype(np.uint8)
 
     def png(self, *, scale: int = 3) -> bytes:
-        """The screen alone as a PNG, each pixel `scale` x `scale` (quick to make: for a picture that changes often)."""
+        """The screen alone (its glass, the dot matrix inside it) as a PNG, each pixel `scale` x `scale` (quick to
+        make: for a picture that changes often)."""
         from PIL import Image
 
         buffer = io.BytesIO()
-        image = Image.fromarray(self.colours(), "RGB")
-        image.resize((WIDTH_PX * scale, HEIGHT_PX * scale), Image.Resampling.NEAREST).save(buffer, format="png")
+        image = Image.fromarray(self.colours(GLASS_MARGIN_PX), "RGB")
+        image.resize((image.width * scale, image.height * scale), Image.Resampling.NEAREST).save(buffer, format="png")
         return buffer.getvalue()
 
     @overload
@@ -155,15 +161,16 @@ class GLCD:
 
         figure: Figure | SubFigure
         if ax is None:
-            figure = plt.figure(figsize=(WIDTH_PX * scale / 100 + 0.4, HEIGHT_PX * scale / 100 + 0.4), dpi=100)
+            side = 2 * (GLASS_MARGIN_PX + 9) * scale / 100
+            figure = plt.figure(figsize=(WIDTH_PX * scale / 100 + side, HEIGHT_PX * scale / 100 + side), dpi=100)
             ax = figure.add_axes((0, 0, 1, 1))
         else:
             figure = ax.figure
-        image = self.colours()
-        margin = 6
+        glass, margin = GLASS_MARGIN_PX, GLASS_MARGIN_PX + 6          # the glass inside a 6-pixel bezel
         ax.add_patch(FancyBboxPatch((-margin, -margin), WIDTH_PX + 2 * margin, HEIGHT_PX + 2 * margin,
                                     boxstyle="round,pad=2", facecolor="#202020", edgecolor="#505050", linewidth=2))
-        ax.imshow(image, extent=(0, WIDTH_PX, HEIGHT_PX, 0), interpolation="nearest", zorder=2)
+        ax.imshow(self.colours(glass), extent=(-glass, WIDTH_PX + glass, HEIGHT_PX + glass, -glass),
+                  interpolation="nearest", zorder=2)
         ax.set_xlim(-margin - 3, WIDTH_PX + margin + 3)
         ax.set_ylim(HEIGHT_PX + margin + 3, -margin - 3)
         ax.set_aspect("equal")

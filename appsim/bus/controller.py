@@ -28,6 +28,22 @@ class Mode(enum.IntEnum):
         return self.name.capitalize().replace("_", "-")
 
 
+class ErrorCounters:
+    """A controller's fault confinement, read from its transmit and receive error counters as ISO 11898-1 says:
+    bus-off with TEC above 255, else error-passive with TEC or REC above 127, else error-active."""
+
+    tec: int
+    rec: int
+
+    @property
+    def bus_off(self) -> bool:
+        return self.tec > 255
+
+    @property
+    def error_passive(self) -> bool:
+        return self.tec <= 255 and (self.tec > 127 or self.rec > 127)
+
+
 class Wire(Protocol):
     """What a controller tells the wire it is attached to."""
 

@@ -61,13 +61,16 @@ def acks(event: BusEvent, nodes: Sequence[str]) -> str:
 class TraceTable:
     """Bus events as the monitor lists them, one line a frame: in a terminal `format_event`'s lines, in Jupyter a table
     whose ACK column says who ACKed in a few words (`acks` among `nodes`) and whose error frames stand out in red.
-    `column`, if given, is one more column: its title and what it shows for each event."""
+    `column`, if given, is one more column: its title and what it shows for each event; `signals` (a DBC's reading,
+    `appsim.bus.signals.Signals`) one more: each frame's message and signal values."""
 
     def __init__(self, events: Iterable[BusEvent], nodes: Sequence[str], *,
-                 column: tuple[str, Callable[[BusEvent], str]] | None = None):
+                 column: tuple[str, Callable[[BusEvent], str]] | None = None,
+                 signals: Callable[[BusEvent], str] | None = None):
         self.events = list(events)
         self.nodes = list(nodes)
         self.column = column
+        self.signals = signals
 
     def __len__(self) -> int:
         return len(self.events)
@@ -78,10 +81,12 @@ class TraceTable:
             lines.append(format_event(event))
             if self.column is not None:
                 lines.append(f"{'':>13}{self.column[0]}: {self.column[1](event)}")
+            lines += signal_lines(event, self.signals)
         return "\n".join(lines)
 
     def _repr_html_(self) -> str:
-        titles = ["time (s)", "sender", "ID", "type", "DLC", "data", "ACK"] + ([self.column[0]] if self.column else [])
+        titles = ["time (s)", "sender", "ID", "type", "DLC", "data", "ACK", *([self.column[0]] if self.column else []),
+                  *(["signals (DBC)"] if self.signals else [])]
         head = "".join(f"<th style='text-align:left;padding:1px 8px'>{html.escape(title)}</th>" for title in titles)
         rows = "".join(self._row(event) for event in self.events) or \
             f"<tr><td colspan='{len(titles)}' style='padding:1px 8px'>no frames</td></tr>"
@@ -99,6 +104,8 @@ class TraceTable:
                  str(frame.dlc), f"<code>{data}</code>" if data else "", ack]
         if self.column is not None:
             cells.append(html.escape(self.column[1](event)))
+        if self.signals is not None:
+            cells.append(html.escape(self.signals(event)))
         style = " style='background:#ffebe9'" if event.error else ""
         row = "".join(f"<td style='padding:1px 8px;text-align:left'>{cell}</td>" for cell in cells)
         return f"<tr{style}>{row}</tr>"
@@ -132,12 +139,20 @@ def summary(bus: Bus) -> str:
             f"bus load {load:.1%} at {bus.bit_rate // 1000} kbit/s")
 
 
-class LiveTrace:
-    """Follows a bus trace as the simulation runs: `new_lines()` gives what appeared since last time."""
+def signal_lines(event: BusEvent, signals: Callable[[BusEvent], str] | None) -> list[str]:
+    """The line under an event's line that gives its signals (a DBC's reading), if there is one."""
+    text = signals(event) if signals is not None else ""
+    return [f"{'':>13}{text}"] if text else []
 
-    def __init__(self, bus: Bus):
+
+class LiveTrace:
+    """Follows a bus trace as the simulation runs: `new_lines()` gives what appeared since last time (with `signals`,
+    each frame's signal values on a line under it)."""
+
+    def __init__(self, bus: Bus, signals: Callable[[BusEvent], str] | None = None):
         self.bus = bus
         self.seen = 0
+        self.signals = signals
 
     def new_lines(self) -> list[str]:
         """The new events' lines; first, if some went out of the trace's window unseen, a line that says how many."""
@@ -145,7 +160,7 @@ class LiveTrace:
         events = trace.since(self.seen)
         missed = trace.total - self.seen - len(events)
         self.seen = trace.total
-        lines = [format_event(event) for event in events]
+        lines = [line for event in events for line in (format_event(event), *signal_lines(event, self.signals))]
         if missed:
             lines.insert(0, f"{'':>11}  ... frames not kept in memory: {missed} (the trace keeps the last "
                             f"{trace.window}; a log keeps every one)")

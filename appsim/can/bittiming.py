@@ -5,7 +5,7 @@ Checks the datasheet rules in plain sentences, lists the settings for a bit rate
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -22,6 +22,9 @@ CLASSIC_CAN_MAX_BIT_RATE = 1_000_000
 """Classic CAN's fastest bit rate, bit/s (ISO 11898-1; only CAN FD's data phase goes faster, and the ECAN has none)."""
 FOSC_MAX_HZ = 40_000_000
 """The PIC18F8680's fastest clock (its data sheet: DC to 40 MHz)."""
+TOLERATED_RATE_ERROR = Fraction(158, 10_000)
+"""The largest oscillator tolerance any classic CAN bit timing allows, 1.58 % (Hartwich and Bassemir, "The
+Configuration of the CAN Bit Timing", Bosch, 1999): a node whose rate is further off cannot keep in step."""
 BRGCON3_IMPLEMENTED = 0x47
 """BRGCON3 bits this model implements (WAKFIL, SEG2PH<2:0>); bits 7 and 5..3 are unimplemented and read 0."""
 
@@ -37,6 +40,15 @@ def _exact(value: int | float | Fraction) -> Fraction:
 def _percent(value: Fraction) -> str:
     """A fraction as a percentage with at most two decimals: 11/16 -> '68.75'."""
     return f"{float(value * 100):.2f}".rstrip("0").rstrip(".")
+
+
+def error_percent(error: Fraction) -> str:
+    """A rate error in percent, signed, with two decimals or as many as its first two digits need: '+0.18',
+    '-0.0000025'; exactly '0' when the rate is exact."""
+    if error == 0:
+        return "0"
+    value = float(error * 100)
+    return f"{value:+.{max(2, 1 - math.floor(math.log10(abs(value))))}f}"
 
 
 def _range_problems(*, brp: int, sjw: int, prseg: int, seg1ph: int, seg2ph: int) -> list[str]:
@@ -168,6 +180,11 @@ class BitTiming:
     def brp_register(self) -> int:
         """The register value BRP<5:0> = brp - 1 (0..63), the "BRP" of the data sheet's TQ formula."""
         return self.brp - 1
+
+    @property
+    def an738_arguments(self) -> tuple[int, int, int, int, int]:
+        """(SJW, BRP, PHSEG1, PHSEG2, PROPSEG), the first five arguments of AN738's `CANInitialize`, in its order."""
+        return self.sjw, self.brp, self.seg1ph, self.effective_seg2ph, self.prseg
 
     @property
     def effective_seg2ph(self) -> int:
@@ -316,23 +333,45 @@ def calculate(
     return sorted(solutions, key=rank)
 
 
-def format_table(solutions: Iterable[Solution]) -> str:
-    """A calculator-style table, one row per solution: BRP, N, segments, SJW, sample point, error, registers; a row
-    whose SJW breaks ISO 11898-1's SJW <= min(PS1, PS2) says so."""
+def nearest(
+    bit_rate: int | float | Fraction,
+    fosc: int,
+    *,
+    sample_point: float | Fraction = Fraction(7, 8),
+    sjw: int | None = None,
+) -> list[Solution]:
+    """The settings of the bit rate nearest `bit_rate` that `fosc` can make (both, if two are as near), ordered as
+    `calculate` orders them: what to use where no setting gives `bit_rate` exactly."""
+    target = _exact(bit_rate)
+    if target <= 0 or fosc <= 0:
+        raise ValueError(f"bit rate and Fosc must be positive, got {bit_rate!r} bit/s at {fosc!r} Hz")
+    error = min(abs(Fraction(fosc, 2 * brp * n) / target - 1)
+                for brp in range(1, BRP_MAX + 1) for n in range(MIN_TQ_PER_BIT, MAX_TQ_PER_BIT + 1))
+    return calculate(target, fosc, sample_point=sample_point, tolerance=error, sjw=sjw)
+
+
+COLUMNS = ("SJW", "BRP", "PHSEG1", "PHSEG2", "PROPSEG")
+"""The table's first columns: `CANInitialize`'s first five arguments, in its order."""
+
+
+def format_table(solutions: Iterable[Solution], marks: Mapping[BitTiming, str] | None = None) -> str:
+    """A calculator-style table, one row per solution: `CANInitialize`'s five timing arguments in its order, then
+    N, sample point, rate error and the BRGCON1..3 values; a row whose SJW breaks ISO 11898-1's SJW <= min(PS1, PS2)
+    says so, and a row of a timing in `marks` ends with its mark."""
+    marks = marks or {}
     lines = [
-        "BRP = prescaler divider (AN738 CANInitialize argument); reg = BRP<5:0> = BRP - 1; "
-        "SJW <= min(PS1, PS2) (ISO 11898-1)",
-        f"{'BRP':>3} {'reg':>3} {'N':>2} {'Prop':>4} {'PS1':>3} {'PS2':>3} {'SJW':>3} {'SP %':>6} "
-        f"{'Error %':>7}  BRGCON1 BRGCON2 BRGCON3",
+        "CANInitialize(SJW, BRP, PHSEG1, PHSEG2, PROPSEG, ...) takes the first five columns, in this order (BRP the "
+        "divider: BRGCON1's BRP<5:0> holds BRP - 1); SJW <= min(PS1, PS2) (ISO 11898-1)",
+        " ".join(COLUMNS) + f" {'N':>3} {'SP %':>6} {'Error %':>7}  BRGCON1 BRGCON2 BRGCON3",
     ]
     for s in solutions:
         t = s.timing
+        arguments = " ".join(f"{value:>{len(name)}}" for name, value in zip(COLUMNS, t.an738_arguments, strict=True))
         regs = "    ".join(f"0x{r:02X}" for r in t.to_registers())
-        flag = "" if t.iso_sjw else "   SJW > PS1: breaks ISO 11898-1 (the PIC accepts it)"
-        lines.append(
-            f"{t.brp:>3} {t.brp_register:>3} {t.tq_per_bit:>2} {t.prseg:>4} {t.seg1ph:>3} {t.effective_seg2ph:>3} "
-            f"{t.sjw:>3} {_percent(t.sample_point):>6} {_percent(s.error):>7}     {regs}{flag}"
-        )
+        notes = [note for note in (marks.get(t), None if t.iso_sjw else
+                                   "SJW > PS1: breaks ISO 11898-1 (the PIC accepts it)") if note]
+        lines.append(f"{arguments} {t.tq_per_bit:>3} {_percent(t.sample_point):>6} {error_percent(s.error):>7}     "
+                     + regs + "".join(f"   {note}" for note in notes))
     if len(lines) == 2:
         lines.append("(no setting gives this bit rate)")
     return "\n".join(lines)

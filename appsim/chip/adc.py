@@ -1,13 +1,14 @@
 """The PIC18F8680 10-bit A/D converter at register level (ADRESH, ADRESL, ADCON0..2), with the potentiometer on AN0.
 
-Conversions take 11 TAD on the simulated clock; appsim.firmware.adc (C18's adc.h) drives it.
+A conversion takes the programmed acquisition time (ADCON2.ACQT) and 11 TAD on the simulated clock, then sets
+PIR1.ADIF; appsim.firmware.adc (C18's adc.h) drives it.
 """
 from __future__ import annotations
 
 import numbers
 from typing import TYPE_CHECKING, TypeGuard
 
-from appsim.chip.sfr import ADC_CHANNELS, ADC_REGISTERS
+from appsim.chip.sfr import ADC_CHANNELS, ADC_REGISTERS, ADIF
 from appsim.chip.sfr import ADFM as _ADFM
 from appsim.chip.sfr import ADON as _ADON
 from appsim.chip.sfr import GO_DONE as _GO_DONE
@@ -24,6 +25,7 @@ CHANNELS = ADC_CHANNELS
 FULL_SCALE = 1023                           # a 10-bit code
 CONVERSION_TAD = 11                         # TAD per 10-bit conversion
 _TAD_TOSC = {0b000: 2, 0b100: 4, 0b001: 8, 0b101: 16, 0b010: 32, 0b110: 64}   # ADCS2:0 -> TAD in Tosc
+ACQUISITION_TAD = (0, 2, 4, 6, 8, 12, 16, 20)   # ACQT2:0 -> the acquisition time the A/D adds after GO, in TAD
 RC_TAD_PS = 4_000_000                       # ADCS2:0 = x11, the A/D RC oscillator: TAD typically 4 µs
 
 
@@ -65,23 +67,23 @@ class ADC:
     """The A/D module of one PIC18F8680, a Peripheral on its SFR bus.
 
     ADCON0: CHS3:0 (bits 5:2), GO/DONE (1), ADON (0). ADCON1: VCFG1:0 (5:4), PCFG3:0 (3:0).
-    ADCON2: ADFM (7), bits 5:3, ADCS2:0 (2:0). All reset to 0; unimplemented bits read 0.
+    ADCON2: ADFM (7), ACQT2:0 (5:3), ADCS2:0 (2:0). All reset to 0; unimplemented bits read 0.
 
-    Setting GO/DONE with ADON = 1 samples the selected input and ends the conversion 11 TAD later
-    (TAD from ADCS2:0: 2, 4, 8, 16, 32 or 64 Tosc, or the RC oscillator's typical 4 µs): ADRESH:ADRESL
-    get the code (right-justified if ADFM = 1, left-justified if 0) and GO/DONE clears. GO/DONE with
-    ADON = 0 does nothing; clearing GO/DONE or ADON mid-conversion aborts it, leaving ADRESH:ADRESL as
-    they were (as on the chip).
+    Setting GO/DONE with ADON = 1 begins the acquisition time ACQT2:0 selects (0, 2, 4, 6, 8, 12, 16 or 20 TAD;
+    ACQT = 000 is manual acquisition: the conversion begins at once), then samples the selected input and ends the
+    conversion 11 TAD later (TAD from ADCS2:0: 2, 4, 8, 16, 32 or 64 Tosc, or the RC oscillator's typical 4 µs):
+    ADRESH:ADRESL get the code (right-justified if ADFM = 1, left-justified if 0), GO/DONE clears and PIR1.ADIF
+    sets, whatever PIE1.ADIE says (DS30491: "when the conversion is completed, the GO/DONE bit is cleared, the ADIF
+    flag is set"). GO/DONE with ADON = 0 does nothing; clearing GO/DONE or ADON mid-conversion aborts it, leaving
+    ADRESH:ADRESL as they were and ADIF clear (as on the chip).
 
     Simplifications, where the kit's firmware never looks:
-    - Acquisition is manual: DS30491's ADCON2 is taken to hold only ADFM and ADCS2:0, as on the
-      PIC18F8720 family (an assumption, not checked against the data sheet). Bits 5:3
-      (ACQT2:0 on later PIC18s) are kept as plain R/W bits and add no acquisition time. The minimum
-      TAD is not checked: a too-fast ADCS still converts exactly.
+    - The acquisition or conversion begins at the GO write, not at the A/D clock's next edge: DS30491's timing
+      diagrams show up to one TAD more (TCY..TAD) before the first TAD.
+    - The minimum TAD and acquisition time are not checked: a too-fast ADCS or a too-short ACQT still converts
+      exactly (the input is a code, with no source impedance to settle).
     - Inputs are given as codes (VREF+ = VDD, VREF- = VSS), so VCFG1:0 and PCFG3:0 are plain R/W bits:
       a channel converts regardless of PCFG.
-    - No PIR1.ADIF / PIE1.ADIE (PIR1 is shared with Timer1 and no interrupts are simulated): firmware
-      polls GO/DONE, as the workshop's does with BusyADC().
     """
 
     def __init__(self, mcu: PIC18F8680):
@@ -100,10 +102,12 @@ class ADC:
         self.inputs[0] = code
 
     def conversion_ps(self) -> int:
-        """How long a conversion takes with the present ADCS2:0: 11 TAD."""
-        tosc = _TAD_TOSC.get(self._registers[_ADCON2] & 0x07)
+        """How long a conversion takes with the present ADCON2, from GO to DONE: the acquisition time ACQT2:0 selects
+        and 11 TAD (TAD from ADCS2:0)."""
+        adcon2 = self._registers[_ADCON2]
+        tosc = _TAD_TOSC.get(adcon2 & 0x07)
         tad_ps = RC_TAD_PS if tosc is None else tosc * PS_PER_SECOND // self.mcu.fosc
-        return CONVERSION_TAD * tad_ps
+        return (ACQUISITION_TAD[(adcon2 >> 3) & 0x07] + CONVERSION_TAD) * tad_ps
 
     # -------------------------------------------------------------- the SFR bus
     def read(self, address: int) -> int:
@@ -126,7 +130,8 @@ class ADC:
             self._start()
 
     def _start(self) -> None:
-        """Sample the selected input now and schedule the end of the conversion."""
+        """Sample the selected input now and schedule the end of the conversion (the chip holds the input at the end
+        of the acquisition time; inputs here change between runs, not within one's few microseconds)."""
         sample = self.inputs[(self._registers[_ADCON0] >> 2) & 0x0F]
         self._conversion = self.mcu.sim.call_after(self.conversion_ps(), lambda: self._finish(sample))
 
@@ -139,5 +144,5 @@ class ADC:
         self._registers[_ADRESH] = high
         self._registers[_ADRESL] = low
         self._registers[_ADCON0] &= ~_GO_DONE
-        self.mcu.changed()
+        self.mcu.interrupts.set_flag(ADIF)      # and the firmware sees the change (or is interrupted)
 

@@ -1,4 +1,5 @@
-"""The PIC18F8680 as firmware sees it: its peripherals on one SFR bus (by address and name), time in cycles.
+"""The PIC18F8680 as firmware sees it: its peripherals on one SFR bus (by address and name), time in cycles, and the
+core taking interrupts between two instructions.
 
 Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
 from the same place in the firmware, with nothing changed since) parks the firmware until a
@@ -7,7 +8,7 @@ peripheral event changes something it reads: a busy-wait costs one loop turn per
 from __future__ import annotations
 
 import contextvars
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, NamedTuple, Protocol
 
 import greenlet
@@ -16,7 +17,7 @@ from appsim.chip.adc import ADC
 from appsim.chip.clock import FOSC_HZ
 from appsim.chip.ecan import registers as ecan_registers
 from appsim.chip.ecan.controller import ECAN
-from appsim.chip.interrupts import PeripheralInterrupts
+from appsim.chip.interrupts import INTERRUPT_LATENCY_CYCLES, RETFIE_CYCLES, Interrupts
 from appsim.chip.ports import PortJ
 from appsim.chip.sfr import (
     ADC_REGISTERS,
@@ -25,17 +26,22 @@ from appsim.chip.sfr import (
     RUNNING_MCU,
     TIMER1_REGISTERS,
     USART_REGISTERS,
+    VECTOR_NAMES,
     GLCDPort,
     SFRNames,
     firmware_entry,
     firmware_location,
     forget_firmware_code,
+    missing_routine,
 )
 from appsim.chip.timer1 import Timer1
 from appsim.chip.usart import USART
+from appsim.errors import FirmwareHung, NoInterruptRoutine
 from appsim.sim import PS_PER_SECOND, Process, Simulator
 
 SFR_ACCESS_CYCLES = 2           # a C statement touching an SFR: MOVFF / MOVF + MOVWF, with banking
+REENTRIES_AT_ONCE = 10_000      # a routine entered again at once this often in a row never clears its source
+Routine = Callable[[], object]  # an interrupt routine, as the core calls it
 
 _getcurrent = greenlet.getcurrent
 
@@ -48,6 +54,8 @@ class Peripheral(Protocol):
 
 
 READ_AHEAD_MAX_PS = 1 << 62           # a horizon with no event ahead
+POLLING_SITES = 1024                  # (register, call site) a polling loop's reads are told apart by, at most: reads
+                                      # from further sites (a deep recursion's) never park, they only cost time
 
 
 def _reads_zero(address: int) -> int:
@@ -72,10 +80,18 @@ class ReadAhead(NamedTuple):
 
 class PIC18F8680(SFRNames):
     """One microcontroller on the simulated clock, built whole: the ECAN module (F00h..F77h, FA3h..FA5h), the A/D,
-    Timer1, the EUSART, PIR1/PIE1/IPR1 and PORTJ on its SFR bus. A board wires its pins (`usart.wired_to`,
-    `portj.levels`) and may give it a display (`glcd`)."""
+    Timer1, the EUSART, the interrupt logic (INTCON.., RCON, PIR1/PIE1/IPR1) and PORTJ on its SFR bus. A board wires
+    its pins (`usart.wired_to`, `portj.levels`) and may give it a display (`glcd`).
+
+    Interrupts: the core takes one between two register accesses (this model's instructions) once its flag, its
+    enable and the global enables say so (`Interrupts.request`), `INTERRUPT_LATENCY_CYCLES` after the access that saw
+    it, by calling the firmware's routine for that vector in the firmware's own process; RETFIE follows the routine's
+    return. With interrupts enabled (INTCON.GIE), spent time (a delay, a library's work) is interruptible at any
+    cycle, and a polling loop parked on its registers wakes to take one. While GIE is 0 nothing of this costs."""
 
     def __init__(self, sim: Simulator, name: str = "node", *, fosc: int = FOSC_HZ):
+        # 28 attributes: CPython 3.11 keeps up to 29 of an object's attributes inline, where they are fastest to reach;
+        # a 30th cost every register access about 3 %. New state goes to the peripherals (see Interrupts).
         self.sim = sim
         self.name = name
         self.fosc = fosc
@@ -103,7 +119,7 @@ class PIC18F8680(SFRNames):
         self.quiet_writes: dict[int, Callable[[], dict[int, int] | None]] = {}     # see `read_ahead`
         self.process: Process | None = None
         self.glcd: GLCDPort | None = None                   # the board's display, if it has one
-        self.interrupts = PeripheralInterrupts(self)
+        self.interrupts = Interrupts(self)
         self.map(self.interrupts, INTERRUPT_REGISTERS.items())
         self.adc = ADC(self)
         self.map(self.adc, ADC_REGISTERS.items())
@@ -127,22 +143,29 @@ class PIC18F8680(SFRNames):
 
     # -------------------------------------------------------------- firmware access
     def read(self, address: int, site: object = None) -> int:
-        """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox)."""
+        """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox).
+
+        An interrupt requested meanwhile (while the firmware handed over, or while its polling loop was parked) is
+        taken after the read, before the firmware uses the value: between this instruction and the next."""
         device = self._devices.get(address)
         process = self.process
         if process is not None and _getcurrent() is process:
             process.local_time += self.access_ps     # process.spend, its common case inline
-            if process.local_time > process.horizon:
+            late = process.local_time > process.horizon
+            if late:
                 process.spend(0)
             again = self._seen.get(address) == self.version    # after spend: other firmware and events may have run
             if again:
                 self._read_again(process, address, site)
             self._seen[address] = self.version
         else:
-            again = False
+            late = again = False
         value = device.read(address) if device is not None else 0
         if again:
             self._polled[address] = value       # what the polling loop saw, to tell a change it would see
+        if (late or again) and self.interrupts.requested:
+            assert process is not None          # `late or again`: the firmware's own read
+            self._interrupt(process)
         return value
 
     def _read_again(self, process: Process, address: int, site: object) -> None:
@@ -156,9 +179,10 @@ class PIC18F8680(SFRNames):
             return
         if address in self.read_side_effects:
             self._polled_pure = False
-        site = (address, firmware_location() if site is None else site)
+        site = (address, hash(firmware_location()) if site is None else site)
         if site not in self._polled_sites:
-            self._polled_sites.add(site)
+            if len(self._polled_sites) < POLLING_SITES:
+                self._polled_sites.add(site)
             return
         self._parked_on = self._polled if self._polled_pure else None
         process.park()
@@ -202,24 +226,125 @@ class PIC18F8680(SFRNames):
                          after_writes)
 
     def write(self, address: int, value: int) -> None:
+        """Write the register; an interrupt this write (or an event while it waited) makes pending is taken after it."""
         process = self.process
         if process is not None and _getcurrent() is process:
             process.spend(self.access_ps)
+        else:
+            process = None                  # not the firmware's own write: nothing to interrupt here
         self.version += 1
         device = self._devices.get(address)
         if device is not None:
             device.write(address, value & 0xFF)
+        interrupts = self.interrupts
+        if interrupts.armed or interrupts.requested:
+            self._update_request()
+            if interrupts.requested and process is not None:
+                self._interrupt(process)
 
     def spend_cycles(self, cycles: int) -> None:
-        """Time the firmware spends computing (instruction cycles at Fosc/4)."""
+        """Time the firmware spends computing (instruction cycles at Fosc/4): interruptible, cycle by cycle, while
+        interrupts are enabled (INTCON.GIE)."""
         process = self.process
         if process is not None and _getcurrent() is process:
-            process.spend(cycles * self.tcy_ps)
+            if self.interrupts.armed:
+                self._spend_interruptibly(process, cycles * self.tcy_ps)
+            else:
+                process.spend(cycles * self.tcy_ps)
+
+    # -------------------------------------------------------------- interrupts
+    def _update_request(self) -> None:
+        """Whether the core has an interrupt to take now; a parked firmware wakes to take it."""
+        interrupts = self.interrupts
+        interrupts.requested = interrupts.armed and interrupts.request() != 0
+        process = self.process
+        if interrupts.requested and process is not None and process.parked:
+            process.wake()
+
+    def _interrupt(self, process: Process) -> None:
+        """Take the interrupt requested, between two instructions of the firmware: after the latency, its routine runs
+        in the firmware's own process, from here; then RETFIE, and at once the next one if one is pending (the same
+        routine again, if it left its flag set)."""
+        interrupts = self.interrupts
+        interrupted, taken = process.routine, 0
+        while interrupts.requested:
+            vector = interrupts.request()
+            if not vector:
+                interrupts.requested = False
+                return
+            if taken == REENTRIES_AT_ONCE:
+                self._hang(f"{VECTOR_NAMES[vector]} was entered {taken:,} times in a row: each time it returned "
+                           f"(RETFIE), {interrupts.pending()} was still pending, and the core takes a pending "
+                           f"interrupt again right after RETFIE, so {interrupted} has not run one instruction since "
+                           "the first. Clear the source's flag in the routine (`PIR1bits.TMR1IF = 0` for Timer1's), or "
+                           "disable the source (its enable bit: PIE1bits.TXIE for a transmit routine with nothing "
+                           "left to send)")
+            taken += 1
+            interrupts.enter(vector)
+            self.version += 1                   # the routine may change what the interrupted loop reads
+            process.routine = VECTOR_NAMES[vector]
+            process.spend(INTERRUPT_LATENCY_CYCLES * self.tcy_ps)
+            self._update_request()
+            if interrupts.requested:
+                self._interrupt(process)        # a high-priority source pre-empts a low-priority routine at once
+            routine = interrupts.routines.get(vector)
+            if routine is None:
+                raise NoInterruptRoutine(missing_routine(vector))
+            routine()
+            process.routine = interrupted
+            interrupts.retfie()
+            process.spend(RETFIE_CYCLES * self.tcy_ps)
+            self.version += 1
+            self._update_request()
+
+    def _spend_interruptibly(self, process: Process, time_ps: int) -> None:
+        """Spend `time_ps` (a delay loop, a library's work) where any cycle may be interrupted: up to the next event
+        at once, else parked until the time is over or an interrupt is requested. A routine's time does not count."""
+        left = time_ps
+        while True:
+            if self.interrupts.requested:
+                self._interrupt(process)
+            if left <= process.horizon - process.local_time:
+                process.local_time += left
+                return
+            started = process.local_time
+            over = self.sim.call_at(started + left, process.wake)
+            self._parked_on = {}                # nothing read: only the end of the time or an interrupt wakes it
+            process.park()
+            over.cancel()
+            left -= process.local_time - started
+
+    def wait_for_interrupt(self, loop: str) -> None:
+        """The firmware waits in `loop` (an empty loop the loader found: only an interrupt routine can end it, such as
+        `while not flag: pass`) until an interrupt is taken. One that none can ever come to stops the firmware with
+        the watchdog's `FirmwareHung`, saying why."""
+        process = self.process
+        assert process is not None and _getcurrent() is process, "firmware waits in its own process"
+        while not self.interrupts.requested:
+            why = self.interrupts.why_none_can_come()
+            if why is not None:
+                self._hang(f"{process.routine} waits in an empty loop at {loop}, which only an interrupt routine can "
+                           f"end, and no interrupt can come: {why}. The board would spin there for ever")
+            self._parked_on = {}
+            process.park()
+        self._interrupt(process)
+
+    def _hang(self, message: str) -> None:
+        """Stop the firmware as the watchdog does (one that caught the last one and went on is frozen)."""
+        process = self.process
+        assert process is not None
+        if process.failure is not None:
+            process.freeze()
+        process.failure = FirmwareHung(message)
+        raise process.failure
 
     # -------------------------------------------------------------- hardware side
     def changed(self) -> None:
-        """A peripheral changed state the firmware can see: wake a parked firmware."""
+        """A peripheral changed state the firmware can see: wake a parked firmware (or interrupt it)."""
         self.version += 1
+        interrupts = self.interrupts
+        if interrupts.armed or interrupts.requested:
+            self._update_request()
         process = self.process
         if process is not None and process.parked and self._loop_would_see_a_change():
             process.wake()
@@ -235,11 +360,13 @@ class PIC18F8680(SFRNames):
                 return True
         return False
 
-    def run(self, main: Callable[[], Any]) -> Process:
-        """Start firmware `main` on this MCU (after a reset, as programming the chip would)."""
+    def run(self, main: Callable[[], Any], routines: Mapping[int, Routine] | None = None) -> Process:
+        """Start firmware `main` on this MCU (after a reset, as programming the chip would), with its interrupt
+        routines by vector (HIGH_VECTOR, LOW_VECTOR): the core calls them in the firmware's process."""
         if self.process is not None and not self.process.dead:
             self.process.stop()
         forget_firmware_code()          # new firmware brings new code objects (a grader loads thousands)
+        self.interrupts.reset(routines or {})
         context = contextvars.Context()
         context.run(RUNNING_MCU.set, self)                  # what `current_mcu()` gives its firmware
         self.process = self.sim.start(self.name, main, context=context)

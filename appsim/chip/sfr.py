@@ -55,13 +55,36 @@ CSRC, TX9, TXEN, SYNC, SENDB, BRGH, TRMT, TX9D = 0x80, 0x40, 0x20, 0x10, 0x08, 0
 SPEN, RX9, SREN, CREN, ADDEN, FERR, OERR, RX9D = 0x80, 0x40, 0x20, 0x10, 0x08, 0x04, 0x02, 0x01     # RCSTA
 RCIDL, SCKP, BRG16, WUE, ABDEN = 0x40, 0x10, 0x08, 0x02, 0x01                                      # BAUDCON
 
-# ------------------------------------------------------------------ peripheral interrupt flags
-INTERRUPT_REGISTERS: dict[str, int] = {"PIE1": 0xF9D, "PIR1": 0xF9E, "IPR1": 0xF9F}
+# ------------------------------------------------------------------ interrupts
+# The core's INTCON, INTCON2, INTCON3 and RCON, and the peripheral flags PIR1/PIE1/IPR1 (PIR3/PIE3/IPR3, the ECAN's,
+# are in the ECAN's register map).
+INTERRUPT_REGISTERS: dict[str, int] = {"PIE1": 0xF9D, "PIR1": 0xF9E, "IPR1": 0xF9F, "RCON": 0xFD0,
+                                       "INTCON3": 0xFF0, "INTCON2": 0xFF1, "INTCON": 0xFF2}
 PSPIF, ADIF, RCIF, TXIF, SSPIF, CCP1IF, TMR2IF, TMR1IF = 7, 6, 5, 4, 3, 2, 1, 0          # PIR1 bit numbers
 INTERRUPT_SOURCES = ("TMR1", "TMR2", "CCP1", "SSP", "TX", "RC", "AD", "PSP")             # bit 0..7
+GIEH, GIEL = 0x80, 0x40                     # INTCON: GIE/GIEH, PEIE/GIEL
+GIE, PEIE = GIEH, GIEL
+IPEN = 0x80                                 # RCON
+HIGH_VECTOR, LOW_VECTOR = 0x08, 0x18        # where the core jumps: high priority (or every source with IPEN = 0), low
+VECTOR_NAMES = {HIGH_VECTOR: "the high-priority interrupt routine (@interrupt, vector 0x08)",
+                LOW_VECTOR: "the low-priority interrupt routine (@interruptlow, vector 0x18)"}
 INTERRUPT_BITFIELDS: Bitfields = {
-    register: {f"{source}{suffix}": (bit, 1) for bit, source in enumerate(INTERRUPT_SOURCES)}
-    for register, suffix in (("PIR1", "IF"), ("PIE1", "IE"), ("IPR1", "IP"))}
+    **{register: {f"{source}{suffix}": (bit, 1) for bit, source in enumerate(INTERRUPT_SOURCES)}
+       for register, suffix in (("PIR1", "IF"), ("PIE1", "IE"), ("IPR1", "IP"))},
+    # Each bit under every name MPLAB C18's p18f8680.h gives it (INTCONbits.GIE and INTCONbits.GIEH are one bit).
+    "INTCON": {"RBIF": (0, 1), "INT0IF": (1, 1), "INT0F": (1, 1), "TMR0IF": (2, 1), "T0IF": (2, 1), "RBIE": (3, 1),
+               "INT0IE": (4, 1), "INT0E": (4, 1), "TMR0IE": (5, 1), "T0IE": (5, 1), "PEIE": (6, 1), "GIEL": (6, 1),
+               "GIE": (7, 1), "GIEH": (7, 1)},
+    "INTCON2": {"RBIP": (0, 1), "INT3IP": (1, 1), "INT3P": (1, 1), "TMR0IP": (2, 1), "T0IP": (2, 1),
+                "INTEDG3": (3, 1), "INTEDG2": (4, 1), "INTEDG1": (5, 1), "INTEDG0": (6, 1), "RBPU": (7, 1),
+                "NOT_RBPU": (7, 1)},
+    "INTCON3": {"INT1IF": (0, 1), "INT1F": (0, 1), "INT2IF": (1, 1), "INT2F": (1, 1), "INT3IF": (2, 1),
+                "INT3F": (2, 1), "INT1IE": (3, 1), "INT1E": (3, 1), "INT2IE": (4, 1), "INT2E": (4, 1),
+                "INT3IE": (5, 1), "INT3E": (5, 1), "INT1IP": (6, 1), "INT1P": (6, 1), "INT2IP": (7, 1),
+                "INT2P": (7, 1)},
+    "RCON": {"BOR": (0, 1), "NOT_BOR": (0, 1), "POR": (1, 1), "NOT_POR": (1, 1), "PD": (2, 1), "NOT_PD": (2, 1),
+             "TO": (3, 1), "NOT_TO": (3, 1), "RI": (4, 1), "NOT_RI": (4, 1), "IPEN": (7, 1)},
+}
 
 # ------------------------------------------------------------------ PORTJ
 PORTJ_REGISTERS: dict[str, int] = {"PORTJ": 0xF88, "LATJ": 0xF91, "TRISJ": 0xF9A}
@@ -127,9 +150,22 @@ class FirmwareMCU(Protocol):
     def read_name(self, name: str) -> int: ...
     def write_name(self, name: str, value: int) -> None: ...
     def set_bits(self, name: str, mask: int, on: bool) -> None: ...
+    def wait_for_interrupt(self, loop: str) -> None: ...
 
 
 RUNNING_MCU: ContextVar[Any] = ContextVar("appsim_running_mcu")
+
+
+def missing_routine(vector: int) -> str:
+    """What a firmware without a routine at `vector` is told when the core vectors there (on a board or sandboxed)."""
+    decorator, pragma, why = (("@interrupt", "interrupt", "with INTCONbits.GIE set, every enabled source whose flag "
+                               "is set vectors to 0x08 (with RCON.IPEN = 1, those whose IPR bit is 1)")
+                              if vector == HIGH_VECTOR else
+                              ("@interruptlow", "interruptlow", "with RCON.IPEN = 1, an enabled source whose IPR bit "
+                               "is 0 vectors to 0x18 when INTCONbits.GIEH and GIEL are set"))
+    return (f"an interrupt was taken at vector 0x{vector:02X}, but the firmware has no {decorator} routine: {why}. "
+            f"Mark the function that serves it with {decorator} (as `#pragma {pragma} NAME` does in C18), or leave "
+            "that source disabled")
 
 
 def current_mcu() -> FirmwareMCU:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from appsim.chip.interrupts import PeripheralInterrupts
+from appsim.chip.interrupts import Interrupts
 from appsim.chip.sfr import RD16 as _RD16
 from appsim.chip.sfr import T1CKPS as _T1CKPS
 from appsim.chip.sfr import TIMER1_REGISTERS, TMR1IF
@@ -42,7 +42,7 @@ class Timer1:
     T13CKI, so the timer does not count at all, whatever T1OSCEN and T1SYNC say.
     """
 
-    def __init__(self, mcu: PIC18F8680, interrupts: PeripheralInterrupts):
+    def __init__(self, mcu: PIC18F8680, interrupts: Interrupts):
         self.mcu = mcu
         self.interrupts = interrupts
         self._t1con = 0

@@ -10,7 +10,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
-from appsim.chip.interrupts import PeripheralInterrupts
+from appsim.chip.interrupts import Interrupts
 from appsim.chip.sfr import (
     ABDEN,
     ADDEN,
@@ -132,11 +132,11 @@ class USART:
     SREN has no effect in asynchronous mode, so a receiver opened with USART_SINGLE_RX receives nothing.
 
     Not simulated: synchronous mode (SYNC = 1 is refused with an error), address detection (ADDEN),
-    break characters (SENDB), auto-baud (ABDEN), wake-up (WUE); BAUDCON.RCIDL always reads 1. No
-    interrupts are taken (PIE1.TXIE/RCIE are stored only): firmware polls, as C18's functions do.
+    break characters (SENDB), auto-baud (ABDEN), wake-up (WUE); BAUDCON.RCIDL always reads 1. TXIF and RCIF
+    interrupt as the flags they are (appsim.chip.interrupts): TXIF while TXREG is empty, RCIF while a byte waits.
     """
 
-    def __init__(self, mcu: PIC18F8680, interrupts: PeripheralInterrupts):
+    def __init__(self, mcu: PIC18F8680, interrupts: Interrupts):
         self.mcu = mcu
         self.ends: dict[str, SerialEnd] = {}
         # Which end the board wires TX and RX to now (its `route`), None for nowhere: the board sets it (DSW2).

@@ -1,15 +1,17 @@
 """What a firmware file imports: `from appsim.firmware import *`, as EX1.C includes CAN18XX8.h and p18f8680.h.
 
-The AN738 library, every SFR by name (`SFR.CANCON = 0x80`) and C18-style bit structs (`RXB0CONbits.RXFUL`).
+The AN738 library, every SFR by name (`SFR.CANCON = 0x80`), C18-style bit structs (`RXB0CONbits.RXFUL`) and interrupt
+routines marked as C18's pragmas mark them (`@interrupt`, `@interruptlow`).
 It acts only through the chip's SFR bus: may import appsim.chip, appsim.can, appsim.sim and appsim.errors.
 """
 from __future__ import annotations
 
 from appsim.chip.sfr import BITFIELDS, current_mcu
-from appsim.firmware import adc, an738, glcd, timers, usart
+from appsim.firmware import adc, an738, glcd, interrupts, timers, usart
 from appsim.firmware.adc import *
 from appsim.firmware.an738 import *
 from appsim.firmware.glcd import *
+from appsim.firmware.interrupts import *
 from appsim.firmware.runtime import CALL_CYCLES
 from appsim.firmware.timers import *
 from appsim.firmware.usart import *
@@ -58,18 +60,27 @@ def Nop() -> None:
     current_mcu().spend_cycles(1)
 
 
+def _units(function: str, unit: int) -> int:
+    """C18's delays take an unsigned char: 1..255 units, and 0 means 256 (its loop counts down before it tests)."""
+    if not isinstance(unit, int) or isinstance(unit, bool) or not 0 <= unit <= 0xFF:
+        wrapped = f": C18 would wait {unit % 256 or 256} units (it keeps the low byte)" if isinstance(unit, int) else ""
+        raise ValueError(f"{function} takes an unsigned char, 0..255 units (0 means 256); got {unit!r}{wrapped}. "
+                         f"Call it again for longer waits")
+    return unit or 256
+
+
 def Delay1KTCYx(unit: int) -> None:
-    """Wait 1,000 x `unit` instruction cycles (C18 delays.h; 0.1 ms per unit at 40 MHz)."""
-    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * unit)
+    """Wait 1,000 x `unit` instruction cycles, as C18's delays.h does (0.1 ms per unit at 40 MHz); 0 means 256."""
+    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * _units("Delay1KTCYx", unit))
 
 
 def Delay10KTCYx(unit: int) -> None:
-    """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz)."""
-    current_mcu().spend_cycles(CALL_CYCLES + 10_000 * unit)
+    """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz); 0 means 256."""
+    current_mcu().spend_cycles(CALL_CYCLES + 10_000 * _units("Delay10KTCYx", unit))
 
 
 SFR = _SFRs()
 globals().update({f"{register}bits": _Bits(register, fields) for register, fields in BITFIELDS.items()})
 
-__all__ = [*an738.__all__, *adc.__all__, *timers.__all__, *glcd.__all__, *usart.__all__,
+__all__ = [*an738.__all__, *adc.__all__, *timers.__all__, *glcd.__all__, *usart.__all__, *interrupts.__all__,
            "SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx", *(f"{r}bits" for r in BITFIELDS)]

@@ -9,6 +9,7 @@ where the C library would silently corrupt a frame or hang, this one raises `AN7
 from __future__ import annotations
 
 import enum
+import operator
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -147,22 +148,40 @@ def _window(mcu: FirmwareMCU, win: int) -> None:
     mcu.write(_CANCON, (mcu.read(_CANCON) & 0b11110001) | (win << 1))
 
 
-def _check_range(name: str, value: int, low: int, high: int, consequence: str) -> None:
-    if not isinstance(value, int) or not low <= value <= high:
-        raise AN738Error(f"{name} = {value!r} is outside {low}..{high}; {consequence}")
+def _integer(value: object) -> int | None:
+    """`value` as C would take an integer argument: an int, an IntEnum member, anything with __index__; else None."""
+    try:
+        return operator.index(value)        # type: ignore[arg-type]
+    except Exception:                       # its __index__ may raise anything
+        return None
 
 
-def _check_id(value: int, extended: bool, what: str) -> None:
+def _shown(value: object) -> str:
+    """A value in a message, the same on every run (no object's address)."""
+    return repr(value) if isinstance(value, (int, float, str, bytes, type(None))) else f"a {type(value).__name__}"
+
+
+def _check_range(name: str, value: int, low: int, high: int, consequence: str) -> int:
+    number = _integer(value)
+    if number is None or not low <= number <= high:
+        raise AN738Error(f"{name} = {_shown(value if number is None else number)} is outside {low}..{high}; "
+                         f"{consequence}")
+    return number
+
+
+def _check_id(value: int, extended: bool, what: str) -> int:
     if extended:
-        _check_range(what, value, 0, 0x1FFF_FFFF,
-                     "a 29-bit extended identifier ends at 0x1FFFFFFF, and AN738 would drop the upper bits")
-    elif not isinstance(value, int) or not 0 <= value <= 0x7FF:
-        shown = f"0x{value:X}" if isinstance(value, int) and value >= 0 else repr(value)
-        kept = f" and use 0x{value & 0x7FF:03X}" if isinstance(value, int) and value >= 0 else ""
+        return _check_range(what, value, 0, 0x1FFF_FFFF,
+                            "a 29-bit extended identifier ends at 0x1FFFFFFF, and AN738 would drop the upper bits")
+    number = _integer(value)
+    if number is None or not 0 <= number <= 0x7FF:
+        shown = f"0x{number:X}" if number is not None and number >= 0 else _shown(value if number is None else number)
+        kept = f" and use 0x{number & 0x7FF:03X}" if number is not None and number >= 0 else ""
         raise AN738Error(
             f"{what} {shown} does not fit an 11-bit standard identifier (0x000..0x7FF): AN738 "
             f"would silently drop the upper bits{kept}. Use a smaller value, or the extended "
             "flag (CAN_TX_XTD_FRAME / CAN_CONFIG_XTD_MSG) for a 29-bit identifier.")
+    return number
 
 
 def _check_mode(mode: int) -> None:
@@ -200,11 +219,9 @@ def CANSetBaudRate(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
                    flags: int = CAN_CONFIG_FLAGS.CAN_CONFIG_DEFAULT) -> None:
     """BRGCON1..3 from TQ counts (1-based; the registers get value − 1). Ignored outside Configuration mode."""
     wrap = "AN738 writes value − 1 into a field too small for it and the bit timing comes out wrong"
-    _check_range("SJW", SJW, 1, 4, wrap)
-    _check_range("BRP", BRP, 1, 64, wrap)
-    _check_range("PHSEG1", PHSEG1, 1, 8, wrap)
-    _check_range("PHSEG2", PHSEG2, 1, 8, wrap)
-    _check_range("PROPSEG", PROPSEG, 1, 8, wrap)
+    SJW, BRP = _check_range("SJW", SJW, 1, 4, wrap), _check_range("BRP", BRP, 1, 64, wrap)
+    PHSEG1, PHSEG2 = _check_range("PHSEG1", PHSEG1, 1, 8, wrap), _check_range("PHSEG2", PHSEG2, 1, 8, wrap)
+    PROPSEG = _check_range("PROPSEG", PROPSEG, 1, 8, wrap)
     mcu = library_call()
     mcu.write(_BRGCON1, ((SJW - 1) << 6) | (BRP - 1))
     brgcon2 = ((PHSEG1 - 1) << 3) | (PROPSEG - 1)
@@ -237,8 +254,7 @@ def CANSetMask(code: int, val: int, type: int) -> None:
     if code not in (0, 1):
         raise AN738Error(f"mask code {code!r} is not CAN_MASK_B1 or CAN_MASK_B2")
     extended = not type & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_TYPE_BIT
-    _check_id(val, extended, "mask")
-    _write_id(library_call(), _RXM_SIDH[code], val, extended)
+    _write_id(library_call(), _RXM_SIDH[code], _check_id(val, extended, "mask"), extended)
 
 
 def CANSetFilter(code: int, val: int, type: int) -> None:
@@ -249,8 +265,7 @@ def CANSetFilter(code: int, val: int, type: int) -> None:
     if code not in range(6):
         raise AN738Error(f"filter code {code!r} is not one CAN_FILTER value (CAN_FILTER_B1_F1 .. CAN_FILTER_B2_F4)")
     extended = not type & CAN_CONFIG_FLAGS.CAN_CONFIG_MSG_TYPE_BIT
-    _check_id(val, extended, "filter")
-    _write_id(library_call(), _RXF_SIDH[code], val, extended)
+    _write_id(library_call(), _RXF_SIDH[code], _check_id(val, extended, "filter"), extended)
 
 
 def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
@@ -302,9 +317,9 @@ def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
     frame (CAN_TX_RTR_FRAME) DataLen is the DLC sent, and Data may be None.
     """
     extended = not MsgFlags & CAN_TX_MSG_FLAGS.CAN_TX_FRAME_BIT
-    _check_id(id, extended, "identifier")
+    id = _check_id(id, extended, "identifier")
     remote = not MsgFlags & CAN_TX_MSG_FLAGS.CAN_TX_RTR_BIT
-    _check_range("DataLen", DataLen, 0, 8,
+    DataLen = _check_range("DataLen", DataLen, 0, 8,
                  "a CAN frame carries at most 8 data bytes; AN738 would write that DLC and copy "
                  "the extra bytes past TXBnD7 into the next registers")
     data = bytes(Data or b"")

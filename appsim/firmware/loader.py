@@ -1,12 +1,14 @@
 """Loading a student's firmware file: plain Python with `from appsim.firmware import *` and a `main()`, or C18's C
 (a `.c` file, translated by appsim.firmware.c18) with its `void main(void)`.
 
-Each load is a fresh module, so two boards running the same file never share their globals.
+Each load is a fresh module, so two boards running the same file never share their globals. An empty loop that only an
+interrupt routine can end (`while not flag: pass`) becomes a wait for the next interrupt (see `waits_for_interrupts`).
 """
 from __future__ import annotations
 
 import ast
 import contextlib
+import difflib
 import io
 import itertools
 import linecache
@@ -17,10 +19,14 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
+from appsim.chip.sfr import VECTOR_NAMES
 from appsim.errors import FirmwareError
+from appsim.firmware.interrupts import MARK, idle, routines
 from appsim.sim import TRACEBACK_FRAMES
 
 _loads = itertools.count()
+IDLE = "__appsim_idle__"            # the name an empty waiting loop calls (appsim.firmware.interrupts.idle)
+LOOP_TEXT = 80                      # characters of a waiting loop's line (and of its file's name) its messages quote
 
 
 def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None,
@@ -33,7 +39,7 @@ def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None,
     identifiers this way. `c_options` are C18's command-line options for a .c file (`-Oi`).
     """
     path = Path(path)
-    return load_source(path, _read(path), defines, c_options=c_options)
+    return load_source(path, read_firmware(path), defines, c_options=c_options)
 
 
 def is_c(path: str | Path, language: str | None = None) -> bool:
@@ -58,12 +64,14 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
     linecache.cache[str(path)] = (len(source), None, source.decode("utf-8").splitlines(True), str(path))
     if defines:
         _apply_defines(tree, defines, path)
+    waits_for_interrupts(tree, path, source)
     try:
         code = compile(tree, str(path), "exec")
     except SyntaxError as error:
         raise _syntax_error(path, error) from None
     module = ModuleType(f"firmware_{path.stem}_{next(_loads)}")
     module.__file__ = str(path)
+    vars(module)[IDLE] = idle
     try:
         exec(code, vars(module))
     except Exception as error:
@@ -78,7 +86,63 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
     if not callable(getattr(module, "main", None)):
         raise FirmwareError(f"{path.name} has no main(): a firmware file defines `def main():` that loops "
                             "forever, as main() does in EX1.C")
+    try:
+        routines(module)
+    except FirmwareError as error:
+        raise FirmwareError(f"{path.name}: {error}") from None
     return module
+
+
+# ====================================================================== empty waiting loops
+
+_CONDITION_NODES = (ast.Name, ast.Constant, ast.UnaryOp, ast.BoolOp, ast.Compare, ast.BinOp, ast.expr_context,
+                    ast.unaryop, ast.boolop, ast.cmpop, ast.operator)
+
+
+def waits_for_interrupts(tree: ast.Module, path: Path, source: bytes) -> None:
+    """Rewrite (in place) every provably empty waiting loop inside a function: `while COND:` whose body is only `pass`,
+    `...` or `Nop()`, and whose condition reads names and constants with no call, attribute or subscript (no register
+    read): `while True: pass`, `while not flag: pass`, `while count == seen: Nop()`. Only an interrupt routine can end
+    such a loop, so on the chip it spins until one does; here each turn first calls `__appsim_idle__(LOOP, (NAMES),
+    (CALLS))`, which waits until the next interrupt is taken (appsim.firmware.interrupts.idle: only when the names
+    hold plain values and the calls are the kit's Nop, so that nothing else can change the condition)."""
+    lines = source.decode("utf-8").splitlines()
+    functions = [node for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))]
+    loops = {id(node): node for function in functions for node in ast.walk(function) if isinstance(node, ast.While)}
+    for loop in loops.values():
+        if not _empty(loop) or not all(isinstance(node, _CONDITION_NODES) for node in ast.walk(loop.test)):
+            continue
+        names = list(dict.fromkeys(node.id for node in ast.walk(loop.test) if isinstance(node, ast.Name)))
+        calls = ["Nop"] if any(isinstance(statement, ast.Expr) and isinstance(statement.value, ast.Call)
+                               for statement in loop.body) else []
+        wait = ast.Expr(ast.Call(ast.Name(IDLE, ast.Load()), [
+            ast.Constant(f"line {loop.lineno} of {_shown(path.name)} (`{_shown(lines[loop.lineno - 1])}`)"),
+            ast.Tuple([ast.Name(name, ast.Load()) for name in names], ast.Load()),
+            ast.Tuple([ast.Name(name, ast.Load()) for name in calls], ast.Load())], []))
+        loop.body.insert(0, ast.copy_location(wait, loop.body[0]))
+    ast.fix_missing_locations(tree)
+
+
+def _shown(text: str, most: int = LOOP_TEXT) -> str:
+    """`text` on one line of printable characters, at most `most` of them, as a message quotes it."""
+    text = "".join(c if c.isprintable() else "?" for c in " ".join(text.split()))
+    return text if len(text) <= most else text[:most - 3] + "..."
+
+
+def _empty(loop: ast.While) -> bool:
+    """A loop body of `pass`, `...` and `Nop()` only."""
+    for statement in loop.body:
+        if isinstance(statement, ast.Pass):
+            continue
+        if not isinstance(statement, ast.Expr):
+            return False
+        value = statement.value
+        if isinstance(value, ast.Constant) and value.value is Ellipsis:
+            continue
+        if not (isinstance(value, ast.Call) and isinstance(value.func, ast.Name) and value.func.id == "Nop"
+                and not value.args and not value.keywords):
+            return False
+    return True
 
 
 def constants(path: str | Path) -> list[str]:
@@ -87,18 +151,33 @@ def constants(path: str | Path) -> list[str]:
     path = Path(path)
     if is_c(path):
         from appsim.firmware import c18
-        return c18.constants(path, _read(path))
-    return list(_assignments(_parse(path, _read(path))))
+        return c18.constants(path, read_firmware(path))
+    return list(_assignments(_parse(path, read_firmware(path))))
 
 
-def _read(path: Path) -> bytes:
-    if not path.is_file():
-        raise FirmwareError(f"there is no firmware file at {path}: give the path of a .py or .c file such as "
+def read_firmware(path: Path) -> bytes:
+    """The bytes of the firmware file at `path`, or a FirmwareError that says what is there instead."""
+    if path.is_dir():
+        raise FirmwareError(f"{path} is a folder, not a firmware file: give the path of a .py or .c file, such as "
                             "exercises/ex1.py")
+    if not path.is_file():
+        what = f"{path} is not a regular file" if path.exists() else f"there is no firmware file at {path}"
+        near = _near(path)
+        raise FirmwareError(f"{what}: " + (f"did you mean {path.parent / near}?" if near else
+                                           "give the path of a .py or .c file such as exercises/ex1.py"))
     try:
         return path.read_bytes()
     except OSError as error:
         raise FirmwareError(f"{path} cannot be read: {error.strerror}") from None
+
+
+def _near(path: Path) -> str | None:
+    """The name of a file beside `path` that is most likely what a typo meant (my_exl.py: my_ex1.py), if any."""
+    try:
+        names = [entry.name for entry in path.parent.iterdir() if entry.suffix == path.suffix and entry.is_file()]
+    except OSError:
+        return None
+    return next(iter(difflib.get_close_matches(path.name, names, n=1, cutoff=0.8)), None)
 
 
 def _parse(path: Path, source: bytes) -> ast.Module:
@@ -114,7 +193,14 @@ def _parse(path: Path, source: bytes) -> ast.Module:
 
 
 def _syntax_error(path: Path, error: SyntaxError) -> FirmwareError:
-    return FirmwareError(f"{path.name}, line {error.lineno}: {error.msg}: fix the Python syntax there")
+    """The error's line quoted as a load error's is, with a caret under where Python stopped reading."""
+    line = (error.text or "").splitlines()[0].rstrip() if (error.text or "").strip() else ""
+    quoted = ""
+    if line:
+        indent = len(line) - len(line.lstrip())
+        caret = min(max((error.offset or 1) - 1, indent), len(line))
+        quoted = f"\n(line {error.lineno}: {line.strip()})\n{' ' * (len(f'(line {error.lineno}: ') + caret - indent)}^"
+    return FirmwareError(f"{path.name}, line {error.lineno}: {error.msg}: fix the Python syntax there{quoted}")
 
 
 def _assignments(tree: ast.Module) -> dict[str, list[ast.Assign | ast.AnnAssign]]:
@@ -154,7 +240,23 @@ def crash_message(error: BaseException, filename: str | None) -> str:
     mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
     what = _in_c_words(error, filename) or _past_the_data(error, filename) or _as_python_words_it(error, report)
-    return f"main() crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+    who = _crashed_in(error, filename)
+    return f"{who} crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+
+
+def _crashed_in(error: BaseException, filename: str | None) -> str:
+    """main(), or the interrupt routine the error came from (innermost: a routine may interrupt main's calls)."""
+    frames = []
+    tb = error.__traceback__
+    while tb is not None:
+        frames.append(tb.tb_frame)
+        tb = tb.tb_next
+    for frame in reversed(frames):
+        function = frame.f_globals.get(frame.f_code.co_name) if frame.f_code.co_filename == filename else None
+        vector = getattr(function, MARK, None) if getattr(function, "__code__", None) is frame.f_code else None
+        if vector in VECTOR_NAMES:
+            return f"{frame.f_code.co_name}(), {VECTOR_NAMES[vector]},"
+    return "main()"
 
 
 def _as_python_words_it(error: BaseException, report: traceback.TracebackException) -> str:

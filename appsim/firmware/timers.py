@@ -9,7 +9,7 @@ from appsim.chip.sfr import TMR1IF
 from appsim.chip.sfr import TMR1ON as _TMR1ON
 from appsim.firmware.runtime import library_call
 
-TIMER_INT_ON = 0b11111111       # PIE1.TMR1IE = 1 (stored; interrupts are not simulated, poll PIR1.TMR1IF)
+TIMER_INT_ON = 0b11111111       # PIE1.TMR1IE = 1: an overflow interrupts (with INTCON.PEIE and GIE set)
 TIMER_INT_OFF = 0b01111111
 T1_16BIT_RW = 0b11111111        # RD16 = 1
 T1_8BIT_RW = 0b10111111         # RD16 = 0

@@ -8,7 +8,10 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+from appsim.can.bittiming import BitTiming
+
 CLASSROOM_BIT_RATE = 125_000        # CANInitialize(4, 10, 8, 4, 3, ...) at Fosc = 40 MHz
+CLASSROOM_TIMING = BitTiming(sjw=4, brp=10, seg1ph=8, seg2ph=4, prseg=3)    # the classroom's, in every exercise
 EXERCISES: tuple[str, ...] = ("ex1", "ex2", "ex3", "ex4", "ex5", "ex6", "demo1")
 CLASSROOM_EXERCISES = range(1, 7)   # what the stations can run: EX1.C .. EX6.C
 EXERCISE_FILES: dict[str, str] = {**{f"ex{n}": f"ex{n}.py" for n in CLASSROOM_EXERCISES},

@@ -21,16 +21,20 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from appsim.bus import monitor
 from appsim.bus.monitor import TraceTable
-from appsim.bus.wire import BusEvent
+from appsim.bus.serve import ServedInBackground
+from appsim.bus.signals import Signals
+from appsim.bus.wire import Bus, BusEvent
 from appsim.firmware.loader import is_c, load_source
-from appsim.sim import PS_PER_SECOND
+from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import checks, plots
 from appsim.workshop.checks import RUNS, CheckResult, Verdict
 from appsim.workshop.checks.ex4 import before_the_first_0x088
 from appsim.workshop.checks.trial import Fatal, Firmware, Trial, loaded
 from appsim.workshop.checks.verdict import results_html, results_text
-from appsim.workshop.course import STATIONS, exercise_name
+from appsim.workshop.classroom import Classroom
+from appsim.workshop.course import CLASSROOM_BIT_RATE, STATIONS, exercise_name
 from appsim.workshop.faults import Fault
+from appsim.workshop.frames import WORKSHOP_DBC
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -131,6 +135,13 @@ def _shown(figure: Figure) -> Figure:
 
     plt.close(figure)
     return figure
+
+
+def _signals(dbc: bool | str | Path) -> Signals | None:
+    """A DBC's reading of frames: the workshop's for True, the file named, or none for False."""
+    if dbc is False:
+        return None
+    return Signals(WORKSHOP_DBC if dbc is True else dbc)
 
 
 def _ids(ids: int | Iterable[int] | None) -> set[int] | None:
@@ -294,13 +305,15 @@ class Station:
 
     @_after_a_run
     def trace(self, ids: int | Iterable[int] | None = None, *, mine: bool = False, limit: int = 16,
-              loopback: bool = False, acceptance: bool = False) -> TraceTable:
+              loopback: bool = False, acceptance: bool = False, dbc: bool | str | Path = False) -> TraceTable:
         """The monitor's lines, the first `limit`, of the frames with `ids` (all if None) or `mine` (your board's);
         `loopback`: the frames nodes in Loopback mode sent themselves; `acceptance`: one more column, what your board's
-        acceptance logic did with each frame."""
+        acceptance logic did with each frame; `dbc`: one more, each frame's signals (True: the workshop's DBC, or
+        the path of another)."""
         assert self.trial is not None
         column = (f"{self.trial.name}'s acceptance logic", self._reception) if acceptance else None
-        return TraceTable(self._events(ids, mine, loopback)[:limit], self.nodes, column=column)
+        return TraceTable(self._events(ids, mine, loopback)[:limit], self.nodes, column=column,
+                          signals=_signals(dbc))
 
     @_after_a_run
     def before_the_master(self) -> TraceTable:
@@ -316,7 +329,8 @@ class Station:
             master = "the master's first 0x088" if event is first else ""
             return f"ACKed {master or 'it'}" if name in event.acked_by else master
 
-        return TraceTable([first, *(e for e in before if e is not first)], self.nodes, column=(f"{name}", what))
+        return TraceTable([*([first] if first is not None else []), *(e for e in before if e is not first)],
+                          self.nodes, column=(f"{name}", what))
 
     @_after_a_run
     def wire_bits(self, *, loopback: bool = False) -> Figure | Note:
@@ -329,20 +343,23 @@ class Station:
         return self.trial.reception(event) or ("(sent it)" if event.sender == self.trial.name else "-")
 
     @_after_a_run
-    def timeline(self, *, start_ms: float = 0, end_ms: float | None = None, static: bool = False) -> Any:
+    def timeline(self, *, start_ms: float = 0, end_ms: float | None = None, static: bool = False,
+                 dbc: bool | str | Path = False) -> Any:
         """The bus from `start_ms` to `end_ms` (the end of the run if None) as a timeline to zoom into and hover over;
-        `static` (or without Plotly): the same as a matplotlib picture."""
+        `static` (or without Plotly): the same as a matplotlib picture; `dbc`: hovering shows each frame's signals
+        (True: the workshop's DBC, or the path of another)."""
         assert self.trial is not None
+        signals = _signals(dbc)
         start_ps = round(start_ms * PS_PER_SECOND / 1000)
         end_ps = self.trial.now if end_ms is None else round(end_ms * PS_PER_SECOND / 1000)
         if not static:
             try:
                 from appsim.workshop.timeline import bus_timeline
                 events = [e for e in self.trial.bus.trace if e.end_ps > start_ps and e.start_ps < end_ps]
-                return bus_timeline(events, self.nodes)
+                return bus_timeline(events, self.nodes, signals)
             except ImportError:
                 pass
-        return _shown(plots.bus_timeline(self.trial.bus.trace, start_ps=start_ps, end_ps=end_ps))
+        return _shown(plots.bus_timeline(self.trial.bus.trace, start_ps=start_ps, end_ps=end_ps, signals=signals))
 
     @_after_a_run
     def error_counters(self) -> Note:
@@ -371,3 +388,26 @@ class Station:
         """What a terminal on the PC shows of the USB-CDC port: the first `characters` the board sent."""
         text = self.usb.decode("latin-1").replace("\0", "")      # C18's putsUSART sends the NUL; terminals skip it
         return Note(text[:characters] or "(nothing)", table=True)
+
+
+# ------------------------------------------------------------------------------------------------- a served classroom
+class ServedClassroom(ServedInBackground):
+    """The classroom of `exercise` (the master and six stations running its solution, the PC's monitor) served to
+    python-can programs as `channel` (`appsim classroom --serve` in a cell): it runs in real time in the background
+    for `seconds`, or until `stop()`, while other cells join it with `can.Bus(interface="appsim", channel=channel)`.
+    It shows itself as how to join, and once stopped, what its programs sent and received."""
+
+    def __init__(self, exercise: int = 2, channel: str = "notebook", *, seconds: float = 60.0):
+        self.exercise = exercise
+
+        def build() -> Bus:
+            bus = Bus(Simulator(), CLASSROOM_BIT_RATE)
+            Classroom(bus, exercise, seed=SEED)
+            return bus
+
+        super().__init__(build, channel, seconds=seconds, what=f"the notebook's classroom at exercise {exercise}")
+
+    def __repr__(self) -> str:
+        if self.running:
+            return f"The classroom of EX{self.exercise} is running in real time, {self.how_to_join}"
+        return self.report or f"The classroom stopped: {self.failure}"

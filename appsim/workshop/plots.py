@@ -4,7 +4,7 @@ Each function draws on `ax` (a new figure when None) and returns the Figure, as 
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from itertools import groupby
 from typing import TYPE_CHECKING, Any, cast
 
@@ -33,6 +33,7 @@ ARBITRATION_FIELDS = frozenset({"SOF", "ID", "SRR", "IDE", "RTR"})
 SEGMENT_COLOURS = {"Sync": "#999999", "Prop": "#f6b26b", "Phase1": "#93c47d", "Phase2": "#6fa8dc"}
 ERROR_THRESHOLDS = ((96, "warning (96)"), (128, "error-passive (128)"), (256, "bus-off (TEC 256)"))
 MS = PS_PER_SECOND / 1000
+SIGNAL_LABELS = 12             # frames in a timeline few enough for each label to carry its signals
 
 
 def _axes(ax: Axes | None, size: tuple[float, float]) -> Axes:
@@ -174,10 +175,10 @@ def bus_levels(levels: Sequence[int], axes: Sequence[Axes] | None = None) -> Fig
     wires.step(xs, canl + canl[-1:], where="post", color="tab:blue", linewidth=2, label="CANL")
     for index, level in enumerate(levels):
         wires.text(index + 0.5, 3.8, "D" if level == physical.DOMINANT else "R", ha="center", fontsize=8)
-    wires.set_ylim(1, 4.1)
+    wires.set_ylim(0.4, 4.1)                         # room under CANL's 1.5 V for the legend, clear of both lines
     wires.set_ylabel("volts")
     wires.set_xlim(0, len(levels))
-    wires.legend(loc="lower right", fontsize=8)
+    wires.legend(loc="lower right", fontsize=8, ncols=2)
     wires.set_title("dominant (D, logic 0): CANH pulled up, CANL down; recessive (R, logic 1): nobody drives, "
                     "both rest at 2.5 V")
     vdiff = [physical.differential_volts(level) for level in levels]
@@ -245,8 +246,10 @@ def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure
 
 
 def bus_timeline(trace: Sequence[BusEvent], ax: Axes | None = None, *,
-                 start_ps: int | None = None, end_ps: int | None = None) -> Figure:
-    """Frames on the bus over time, one row per sender: data frames blue, RTR frames hatched, error frames red."""
+                 start_ps: int | None = None, end_ps: int | None = None,
+                 signals: Callable[[BusEvent], str] | None = None) -> Figure:
+    """Frames on the bus over time, one row per sender: data frames blue, RTR frames hatched, error frames red; with
+    `signals` (a DBC's reading), a frame's label is its message and signal values when there are few."""
     from matplotlib.patches import Rectangle
 
     start_ps = min((e.start_ps for e in trace), default=0) if start_ps is None else start_ps
@@ -261,7 +264,9 @@ def bus_timeline(trace: Sequence[BusEvent], ax: Axes | None = None, *,
                                facecolor=colour, edgecolor=colour, hatch="///" if event.frame.remote else None,
                                alpha=0.5 if event.frame.remote else 0.9, gid="error" if event.error else "frame"))
         if len(shown) <= 40:
-            ax.text(event.end_ps / MS, row + 0.5, f" {event.frame.can_id:03X}", va="center", fontsize=7)
+            decoded = signals(event) if signals is not None and len(shown) <= SIGNAL_LABELS else ""
+            ax.text(event.end_ps / MS, row + 0.5, f" {event.frame.can_id:03X} {decoded}".rstrip(), va="center",
+                    fontsize=7)
     ax.set_yticks([len(senders) - 0.5 - row for row in range(len(senders))], senders)
     ax.set_xlim(start_ps / MS, end_ps / MS)
     ax.set_ylim(0, max(1, len(senders)))

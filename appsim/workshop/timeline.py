@@ -5,7 +5,8 @@ Plotly: docs/notebooks.md); `plots.bus_timeline` draws the same as a static matp
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+import html
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 from appsim.bus.monitor import acks
@@ -25,18 +26,23 @@ def kind(event: BusEvent) -> str:
     return "error frame" if event.error else "remote frame (RTR)" if event.frame.remote else "data frame"
 
 
-def describe(event: BusEvent, nodes: Sequence[str]) -> str:
-    """What hovering over the event's bar shows (Plotly's HTML subset)."""
+def describe(event: BusEvent, nodes: Sequence[str], signals: Callable[[BusEvent], str] | None = None) -> str:
+    """What hovering over the event's bar shows (Plotly's HTML subset); with `signals` (a DBC's reading), the frame's
+    message and signal values too."""
     frame = event.frame
     ident = f"0x{frame.can_id:08X}" if frame.extended else f"0x{frame.can_id:03X}"
     what = f"RTR, DLC {frame.dlc}" if frame.remote else f"DLC {frame.dlc}: {frame.data.hex(' ').upper()}"
     outcome = f"error: {event.error}" if event.error else f"ACK: {acks(event, nodes)}"
+    decoded = signals(event) if signals is not None else ""
     return (f"<b>{ident}</b> {what}<br>from {event.sender} at {event.start_ps / MS:.3f} ms "
-            f"({(event.end_ps - event.start_ps) / MS:.3f} ms on the bus)<br>{outcome}")
+            f"({(event.end_ps - event.start_ps) / MS:.3f} ms on the bus)<br>{outcome}"
+            + (f"<br>{html.escape(decoded)}" if decoded else ""))
 
 
-def bus_timeline(trace: Sequence[BusEvent], nodes: Sequence[str]) -> Figure:
-    """The events of `trace` as bars on one row per sender (`nodes`: the bus's nodes, who could ACK)."""
+def bus_timeline(trace: Sequence[BusEvent], nodes: Sequence[str],
+                 signals: Callable[[BusEvent], str] | None = None) -> Figure:
+    """The events of `trace` as bars on one row per sender (`nodes`: the bus's nodes, who could ACK); hovering over a
+    frame shows its signals too with `signals` (`appsim.bus.signals.Signals`)."""
     import plotly.graph_objects as go
 
     senders = list(dict.fromkeys(event.sender for event in trace))
@@ -48,7 +54,7 @@ def bus_timeline(trace: Sequence[BusEvent], nodes: Sequence[str]) -> Figure:
             base=[event.start_ps / MS for event in shown], x=[(event.end_ps - event.start_ps) / MS for event in shown],
             text=[f"{event.frame.can_id:03X}" for event in shown], textposition="inside", insidetextanchor="middle",
             textangle=0,
-            hovertext=[describe(event, nodes) for event in shown], hoverinfo="text",
+            hovertext=[describe(event, nodes, signals) for event in shown], hoverinfo="text",
             marker={"color": colour, "line": {"width": 0}, "pattern": {"shape": hatch}})
     errors = sum(1 for event in trace if event.error)
     figure.update_layout(

@@ -4,11 +4,12 @@ Firmware reads and writes registers; the wire calls the event methods (`appsim.b
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from appsim.bus.bitlevel import Assembled
-from appsim.bus.controller import Mode, Wire
+from appsim.bus.controller import ErrorCounters, Mode, Wire
 from appsim.can.bittiming import BitTiming
 from appsim.can.frame import CanFrame
 from appsim.chip.clock import FOSC_HZ
@@ -44,6 +45,7 @@ _RXF_OF = {"RXB0": (0, 1), "RXB1": (2, 3, 4, 5)}
 _MASK_OF = {"RXB0": 0, "RXB1": 1}
 
 # What a CPU access to each address does, decided once from the register map rather than on every access.
+IGNORED_KEPT = 64                        # ignored writes the module keeps to show (ECAN.ignored_writes)
 _CONFIGURATION = Mode.CONFIGURATION      # an enum member is slow to look up on its class (CPython 3.11)
 _PLAIN, _PROTECTED, _CANSTAT, _COMSTAT, _TXERRCNT, _RXERRCNT, _UNMAPPED = range(7)
 
@@ -70,7 +72,7 @@ _SIDE_EFFECTS = frozenset(R.BY_NAME[n].address for n in ("CANCON", "TXB0CON", "T
                                                         "ECANCON"))
 
 
-class ECAN:
+class ECAN(ErrorCounters):
     """One ECAN module. Registers are the truth; everything else is derived from them or is counters.
 
     `changed` is called whenever an event of the bus changes what the firmware can read (the MCU wakes a waiting
@@ -85,7 +87,10 @@ class ECAN:
         self.wire: Wire | None = None
         self.changed = changed
         self.mode_change_aborts_tx = mode_change_aborts_tx
-        self.ignored_writes: list[tuple[str, int]] = []
+        # Writes the silicon ignored (a filter outside Configuration mode, a TX buffer while TXREQ = 1), as (register,
+        # value): the latest IGNORED_KEPT of them, and how many in all (a loop may make millions).
+        self.ignored_writes: deque[tuple[str, int]] = deque(maxlen=IGNORED_KEPT)
+        self.ignored_count = 0
         self.reset()
 
     # ----------------------------------------------------------------- reset and state
@@ -107,14 +112,6 @@ class ECAN:
     def requested_mode(self) -> Mode:
         """The mode asked for in CANCON.REQOP (OPMODE follows once the bus allows)."""
         return _MODE_OF_REQOP[self._sfr[0x6F] >> 5]
-
-    @property
-    def bus_off(self) -> bool:
-        return self.tec > 255
-
-    @property
-    def error_passive(self) -> bool:
-        return not self.bus_off and (self.tec > 127 or self.rec > 127)
 
     @property
     def error_state(self) -> str:
@@ -165,14 +162,14 @@ class ECAN:
         if reg is None:
             return
         if (reg.protected or reg.locked) and self.opmode != _CONFIGURATION:
-            self.ignored_writes.append((reg.name, value & 0xFF))
+            self._ignored(reg.name, value)
             return
         index = address - 0xF00
         old = self._sfr[index]
         lock = _TXREQ_LOCK.get(address)
         if lock is not None:
             if self._sfr[lock] & R.TXREQ:
-                self.ignored_writes.append((reg.name, value & 0xFF))   # locked while TXREQ = 1
+                self._ignored(reg.name, value)     # locked while TXREQ = 1
                 return
             self._tx_frames.pop(lock, None)
         new = (old & ~reg.writable & 0xFF) | (value & reg.writable)
@@ -182,6 +179,10 @@ class ECAN:
             self._acceptance = None
         if address in _SIDE_EFFECTS:
             self._after_write(reg.name, old, new)
+
+    def _ignored(self, name: str, value: int) -> None:
+        self.ignored_writes.append((name, value & 0xFF))
+        self.ignored_count += 1
 
     def _windowed(self, address: int) -> int:
         if _WINDOW_FIRST <= address - 0xF00 <= _WINDOW_LAST:
@@ -236,6 +237,11 @@ class ECAN:
                 | (R.RXBP if rec > 127 else 0) | (R.TXWARN if tec > 95 else 0)
                 | (R.RXWARN if rec > 95 else 0))
         return bits | (R.EWARN if bits & (R.TXWARN | R.RXWARN) else 0)
+
+    def interrupt_registers(self) -> tuple[int, int, int]:
+        """PIR3, PIE3 and IPR3, as the core's interrupt logic reads them."""
+        sfr = self._sfr
+        return sfr[0xA4], sfr[0xA3], sfr[0xA5]
 
     def _icode(self) -> int:
         pending = self._sfr[0xA4] & self._sfr[0xA3]    # PIR3 & PIE3

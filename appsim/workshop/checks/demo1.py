@@ -9,7 +9,7 @@ from itertools import pairwise
 from appsim.bus.wire import BusEvent
 from appsim.chip.usart import PC_BAUD
 from appsim.sim import PS_PER_SECOND
-from appsim.workshop.checks.trial import Trial, count, listing, took_part
+from appsim.workshop.checks.trial import Trial, count, listing, quoted, took_part
 from appsim.workshop.checks.verdict import CheckResult
 
 BAUD = "USART at 19200 baud"
@@ -52,13 +52,13 @@ def _match(lines: list[str], frames: list[BusEvent]) -> dict[int, int] | str:
             continue
         found = FRAME_LINE.match(line)
         if found is None:
-            return f"line {number + 1}, {line!r}, is not in the documented format ({FORMAT_HELP})"
+            return f"line {number + 1}, {quoted(line)}, is not in the documented format ({FORMAT_HELP})"
         _, ident, kind, what, dlc, data = found.groups()
         key = (int(ident, 16), kind == "XTD", what == "RTR ", int(dlc), bytes.fromhex(data.replace(" ", "")))
         while position < len(frames) and _key(frames[position]) != key:
             position += 1
         if position == len(frames):
-            return f"line {number + 1}, {line!r}, lists a frame that was not on the bus at that point"
+            return f"line {number + 1}, {quoted(line)}, lists a frame that was not on the bus at that point"
         matched[number] = position
         position += 1
     return matched
@@ -101,7 +101,7 @@ def _format(lines: list[str], matched: dict[int, int] | str) -> CheckResult:
                                           "(the USART at 19200 baud carries about 34 a second): one line per frame "
                                           "received (CANIsRxReady(), CANReceiveMessage(), putsUSART()).")
     return CheckResult(FORMAT, True, f"{count(len(matched), 'frame line')}, each the next frame on the bus "
-                                     f"(the first: {lines[min(matched)].strip()!r}).")
+                                     f"(the first: {quoted(lines[min(matched)].strip())}).")
 
 
 def _lost(lines: list[str], matched: dict[int, int] | str, frames: list[BusEvent]) -> CheckResult:
@@ -112,7 +112,7 @@ def _lost(lines: list[str], matched: dict[int, int] | str, frames: list[BusEvent
         missing = frames[previous_frame + 1:index]
         notes = [line for line in lines[(previous_line or -1) + 1:number] if line.startswith("#") and "lost" in line]
         counts = [int(c) for note in notes for c in LOST_COUNT.findall(note)]
-        after = f"after {lines[previous_line]!r}" if previous_line is not None else "before the first line"
+        after = f"after {quoted(lines[previous_line])}" if previous_line is not None else "before the first line"
         if missing and not notes:
             size = len(lines[previous_line]) + 2 if previous_line is not None else None     # with CR LF
             sending = (f"that line's {size} bytes take {size * BITS_PER_BYTE / PC_BAUD * 1000:.0f} ms"
@@ -123,10 +123,11 @@ def _lost(lines: list[str], matched: dict[int, int] | str, frames: list[BusEvent
                                             "RXB0 and RXB1 overflow: report CANMessageFlag & CAN_RX_OVERFLOW (TODO 3), "
                                             "or keep frames in a queue and count what it cannot hold.")
         if counts and sum(counts) != len(missing):
-            return CheckResult(LOST, False, f"{notes[0]!r} {after}, but {count(len(missing), 'frame')} went missing "
-                                            "there: the count must be exact, or say only that frames were lost.")
+            return CheckResult(LOST, False, f"{quoted(notes[0])} {after}, but {count(len(missing), 'frame')} went "
+                                            "missing there: the count must be exact, or say only that frames were "
+                                            "lost.")
         if not missing and notes:
-            return CheckResult(LOST, False, f"{notes[0]!r} {after}, but no frame went missing there.")
+            return CheckResult(LOST, False, f"{quoted(notes[0])} {after}, but no frame went missing there.")
         total += len(missing)
         previous_line, previous_frame = number, index
     if not total:

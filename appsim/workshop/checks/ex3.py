@@ -4,7 +4,7 @@ The master's potentiometer moves halfway through, so the LCD must follow every f
 """
 from __future__ import annotations
 
-from appsim.workshop.checks.judging import data_frames, on_the_bus
+from appsim.workshop.checks.judging import data_frames, master_kept_off, on_the_bus
 from appsim.workshop.checks.trial import (
     MASTER_ID,
     Trial,
@@ -42,6 +42,8 @@ def master_frames(trial: Trial):
 
 def _receives(trial: Trial) -> CheckResult:
     frames = master_frames(trial)
+    if not frames:
+        return CheckResult(RECEIVES, False, master_kept_off(trial))
     missed = [e for e in frames if not trial.reception(e).startswith("RXB0")]
     if not missed:
         return CheckResult(RECEIVES, True, f"All {count(len(frames), 'broadcast')} of 0x088 went into RXB0 "

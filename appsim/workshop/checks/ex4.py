@@ -4,7 +4,7 @@ sending, with the mask and filter set again after the second CANInitialize() so 
 from __future__ import annotations
 
 from appsim.bus.wire import Bus, BusEvent
-from appsim.workshop.checks.judging import data_frames, why_silent
+from appsim.workshop.checks.judging import data_frames, master_kept_off, why_silent
 from appsim.workshop.checks.trial import MASTER_ID, Trial, count, describe, listing, ms, took, took_part
 from appsim.workshop.checks.verdict import CheckResult
 
@@ -17,21 +17,26 @@ STEPS_456 = ("after the first 0x088: CANSetOperationMode(CAN_OP_MODE_CONFIG), th
              "CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL) (TODO 4, 5, 6)")
 
 
-def before_the_first_0x088(bus: Bus, node: str) -> tuple[BusEvent, list[BusEvent]]:
+def before_the_first_0x088(bus: Bus, node: str) -> tuple[BusEvent | None, list[BusEvent]]:
     """The master's first 0x088, and every frame `node` sent or ACKed that started before that 0x088 ended.
 
     That 0x088 is one of them if `node` ACKed it: a node in Listen-only mode never ACKs, so it was not listening
-    when the 0x088 went by. A node that listens until then shows none. (The notebook shows the same list.)
+    when the 0x088 went by. A node that listens until then shows none. (The notebook shows the same list.) If no
+    0x088 went through (a node that wins every arbitration keeps it off the bus), None and all of them.
     """
-    first = next(e for e in bus.frames() if e.sender == "master" and e.frame.can_id == MASTER_ID
-                 and not e.frame.remote)      # the PC monitor interface ACKs it whatever the stations do
-    return first, [e for e in bus.trace if e.start_ps < first.end_ps and (e.sender == node or node in e.acked_by)]
+    first = next((e for e in bus.frames() if e.sender == "master" and e.frame.can_id == MASTER_ID
+                  and not e.frame.remote), None)      # the PC monitor interface ACKs it whatever the stations do
+    end = first.end_ps if first is not None else bus.sim.now
+    return first, [e for e in bus.trace if e.start_ps < end and (e.sender == node or node in e.acked_by)]
 
 
 def run(trial: Trial) -> list[CheckResult]:
     trial.classroom(4, stations=2)
     trial.run(SECONDS)
     first, before = before_the_first_0x088(trial.bus, trial.name)
+    if first is None:
+        why = master_kept_off(trial)
+        return [CheckResult(LISTENS, False, why), CheckResult(JOINS, False, why), CheckResult(FILTERS, False, why)]
     mine = [e for e in trial.sent() if e.start_ps >= first.end_ps]
     return [_listens(trial, first, before), _joins(trial, first, mine), _filters(trial, mine)]
 

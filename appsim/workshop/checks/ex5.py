@@ -3,6 +3,7 @@ DLC 0 or the standard's 5 (the length of the data it asks for); the master's ans
 """
 from __future__ import annotations
 
+from appsim.firmware.identity import shown
 from appsim.workshop.checks.judging import once_per_overflow, sent_anywhere, why_silent
 from appsim.workshop.checks.trial import (
     MASTER_ID,
@@ -26,11 +27,13 @@ NAMES = (REQUESTS, PERIOD, ANSWER, LCD)
 SECONDS = 0.4                     # listen until ~50 ms, then six Timer1 overflows
 HOW = "CANSendMessage(RTR_ID, {none}, 0, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_RTR_FRAME)"
 
-
-def how(trial: Trial) -> str:
-    return HOW.format(none=trial.firmware.says("None", "NULL"))
 ANSWER_BYTES = 5                  # the master answers with 01 02 03 ADRESH ADRESL
 REQUEST_DLCS = (0, ANSWER_BYTES)  # the workshop's DataLen 0; CAN 2.0's advice: the DLC of the data frame asked for
+
+
+def how(trial: Trial) -> str:
+    """The call that sends the request, in the firmware's language (None or NULL)."""
+    return HOW.format(none=trial.firmware.says("None", "NULL"))
 
 
 def run(trial: Trial) -> list[CheckResult]:
@@ -53,6 +56,8 @@ def _requests(trial: Trial, mine) -> CheckResult:
         elif not frame.remote:
             problem = (f"a data frame, not a remote transmission request: on TMR1_OVERFLOW do not send your data, "
                        f"send {how(trial)} (see the TODO)")
+        elif frame.can_id != rtr_id and trial.identity_problem:
+            problem = f"it asks for {hex_id(frame.can_id)}, not for RTR_ID = {shown(rtr_id)}. {trial.identity_problem}"
         elif frame.can_id != rtr_id:
             problem = f"it asks for {hex_id(frame.can_id)}; station {trial.station} asks for RTR_ID = {hex_id(rtr_id)}"
         elif frame.dlc not in REQUEST_DLCS:
@@ -63,7 +68,11 @@ def _requests(trial: Trial, mine) -> CheckResult:
                        "it) and destroy each other's request with a bit error")
         else:
             continue
-        return CheckResult(REQUESTS, False, f"Sent {describe(frame)} at {ms(event.start_ps)}: {problem}.")
+        return CheckResult(REQUESTS, False, f"Sent {describe(frame)} at {ms(event.start_ps)}: {problem}"
+                                            + ("" if problem.endswith(".") else "."))
+    if trial.identity_problem:
+        return CheckResult(REQUESTS, False, f"{trial.identity_problem} Otherwise right: {count(len(mine), 'frame')} "
+                                            f"{describe(mine[0].frame)}.")
     return CheckResult(REQUESTS, True, f"{count(len(mine), 'frame')} {describe(mine[0].frame)}.")
 
 

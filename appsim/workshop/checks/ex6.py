@@ -5,6 +5,7 @@ data frames with the station's ID make it a faulty node, since only the station 
 from __future__ import annotations
 
 from appsim.bus.wire import BusEvent
+from appsim.chip.sfr import current_mcu
 from appsim.firmware import Delay1KTCYx
 from appsim.firmware.an738 import (
     CAN_CONFIG_FLAGS,
@@ -12,6 +13,7 @@ from appsim.firmware.an738 import (
     CANInitialize,
     CANSendMessage,
 )
+from appsim.firmware.runtime import CALL_CYCLES
 from appsim.workshop.checks.ex3 import master_frames
 from appsim.workshop.checks.judging import data_frames, why_silent
 from appsim.workshop.checks.trial import MS, Trial, count, describe, hex_id, listing, ms, took
@@ -47,7 +49,7 @@ def test_node(own_id: int, other_id: int):
         CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_FLAGS.CAN_CONFIG_ALL_MSG)
         now = 0
         for at_ms, can_id, remote in schedule:
-            Delay1KTCYx((at_ms - now) * 10)
+            current_mcu().spend_cycles(CALL_CYCLES + 10_000 * (at_ms - now))    # Delay1KTCYx((at_ms - now) * 10)
             now = at_ms
             data = None if remote else [9, 9, 9, 9, 9]
             flags = STANDARD & REMOTE if remote else STANDARD
@@ -63,7 +65,8 @@ def run(trial: Trial) -> list[CheckResult]:
     other_id = next(station_ids(k)["MESSAGE_ID1"] for k in room.stations if k != trial.station)
     trial.node("tester", test_node(trial.own_id, other_id))
     trial.run(SECONDS)
-    joined = master_frames(trial)[0].end_ps               # Listen-only until then, as in Ex4
+    broadcasts = master_frames(trial)
+    joined = broadcasts[0].end_ps if broadcasts else 0     # Listen-only until then, as in Ex4
     frames = [e for e in trial.bus.frames() if e.sender != trial.name and e.end_ps > joined]
     polls = [e for e in frames if e.frame.remote and e.frame.can_id == trial.own_id]
     mine = trial.sent()

@@ -7,6 +7,7 @@ from __future__ import annotations
 from itertools import pairwise
 
 from appsim.bus.wire import BusEvent
+from appsim.firmware.identity import shown
 from appsim.workshop.checks.trial import (
     MS,
     TIMER1_PERIOD_PS,
@@ -41,6 +42,17 @@ def why_silent(trial: Trial) -> str:
             "CANSetOperationMode(CAN_OP_MODE_NORMAL)")
 
 
+def master_kept_off(trial: Trial) -> str:
+    """Why the master's 0x088 never went through the bus: the student's node kept it off, in the workshop's words."""
+    mine = trial.sent()
+    if mine:
+        return (f"The master's 0x088 never went through the bus: your node sent {count(len(mine), 'frame')} "
+                f"({describe(mine[0].frame)} first) back to back, each winning arbitration against 0x088 (the lower "
+                "identifier wins) or destroying it, so no station heard the master. Send once per Timer1 overflow "
+                "(clear PIR1bits.TMR1IF), with MESSAGE_ID1.")
+    return "The master's 0x088 never went through the bus, so there was nothing to judge by."
+
+
 def sent_anywhere(trial: Trial) -> list[BusEvent]:
     """The student's frames on the bus, or if none, the ones that went round inside it in Loopback mode."""
     return trial.sent() or [e for e in trial.bus.loopback_trace if e.sender == trial.name]
@@ -63,24 +75,33 @@ def on_the_bus(trial: Trial, name: str) -> CheckResult:
 
 
 def data_frames(trial: Trial, name: str, events: list[BusEvent]) -> CheckResult:
-    """Every frame is a data frame with MESSAGE_ID1 and 01 02 03 ADRESH ADRESL of the potentiometer."""
+    """Every frame is a data frame with MESSAGE_ID1 and 01 02 03 ADRESH ADRESL of the potentiometer. With a MESSAGE_ID1
+    that is no station's the frames are judged against it all the same, and the check fails for it."""
     potentiometer = trial.board.adc.potentiometer
     expected = payload(potentiometer)
+    problem = trial.identity_problem
     if not events:
-        return CheckResult(name, False, "No frame from your node to look at (see the check above).")
+        return CheckResult(name, False, "No frame from your node to look at (see the check above)."
+                           + (f" {problem}" if problem else ""))
     for event in events:
         frame = event.frame
         if frame.remote or frame.can_id != trial.own_id or frame.data != expected:
             return CheckResult(name, False, f"Sent {describe(frame)} at {ms(event.start_ps)}; expected "
-                                            f"{hex_id(trial.own_id)} DATA {expected.hex(' ').upper()}: "
-                                            f"{_what_differs(trial, frame, expected)}")
-    return CheckResult(name, True, f"{count(len(events), 'frame')} {hex_id(trial.own_id)} "
-                                   f"DATA {expected.hex(' ').upper()} (the potentiometer reads {potentiometer}).")
+                                            f"{shown(trial.own_id)} DATA {expected.hex(' ').upper()}: "
+                                            f"{_what_differs(trial, frame, expected)}" + (f". {problem}" if problem
+                                                                                          else ""))
+    frames = f"{count(len(events), 'frame')} {shown(trial.own_id)} DATA {expected.hex(' ').upper()}"
+    if problem:
+        return CheckResult(name, False, f"{problem} Otherwise right: {frames} (the potentiometer reads "
+                                        f"{potentiometer}).")
+    return CheckResult(name, True, f"{frames} (the potentiometer reads {potentiometer}).")
 
 
 def _what_differs(trial: Trial, frame, expected: bytes) -> str:
     if frame.remote:
         return "a remote frame (RTR) carries no data; send with CAN_TX_NO_RTR_FRAME and DataLen 5"
+    if frame.can_id != trial.own_id and trial.identity_problem:
+        return f"the identifier is MESSAGE_ID1, {shown(trial.own_id)} in your file"
     if frame.can_id != trial.own_id:
         return (f"the identifier is MESSAGE_ID1, {hex_id(trial.own_id)} for station {trial.station} "
                 f"(0x100 + 0x10 per station)")

@@ -19,7 +19,9 @@ from appsim.chip.ecan.acceptance import raw29
 from appsim.chip.ecan.controller import ECAN
 from appsim.chip.mcu import PIC18F8680
 from appsim.errors import AppsimError, FirmwareError
-from appsim.firmware.loader import load_firmware
+from appsim.firmware.identity import identity_of, shown
+from appsim.firmware.interrupts import routines as interrupt_routines
+from appsim.firmware.loader import is_c, load_firmware, load_source, read_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.course import CLASSROOM_BIT_RATE, MASTER_ID, RTR_IDS, STATION_IDS, STATIONS
@@ -43,13 +45,15 @@ class Firmware:
     """What the student handed in, loaded: what a board runs, what it calls itself, where its code lives.
 
     `identity` holds the integers the loaded firmware gives MESSAGE_ID1 and RTR_ID (missing if not integers): the
-    firmware's own word, which is safe to take, since the verdict comes from what it then does on the bus.
+    firmware's own word, which is safe to take, since the verdict comes from what it then does on the bus. `routines`
+    are its interrupt routines by vector, as the board's core calls them.
     """
 
     runnable: Callable[[], object]
     filename: str | None
     label: str
     identity: Mapping[str, int] = field(default_factory=dict)
+    routines: Mapping[int, Callable[[], object]] = field(default_factory=dict)
     language: str = "python"        # or "c": the language its messages quote code in
 
     def says(self, python: str, c: str) -> str:
@@ -63,15 +67,6 @@ class Loadable(Protocol):
     def load(self) -> Firmware: ...
 
 
-IDENTITY_NAMES = ("MESSAGE_ID1", "RTR_ID")
-
-
-def identity_of(module: ModuleType) -> dict[str, int]:
-    """The module's MESSAGE_ID1 and RTR_ID, where they are integers."""
-    values = {name: getattr(module, name, None) for name in IDENTITY_NAMES}
-    return {name: value for name, value in values.items() if isinstance(value, int) and not isinstance(value, bool)}
-
-
 def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmware:
     """The firmware module `load()` gives (its code from `filename`, called `label`); one that does not load is
     `Fatal`, with the loader's words."""
@@ -79,19 +74,37 @@ def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmwar
         module = load()
     except FirmwareError as error:
         raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-    return Firmware(module.main, filename, label, identity_of(module), language_of(module))
+    return Firmware(module.main, filename, label, identity_of(module), interrupt_routines(module),
+                    language_of(module))
 
 
 def language_of(module: ModuleType) -> str:
     return "c" if getattr(module, "__c18__", False) else "python"
 
 
+def notebook_firmware(path: Path) -> tuple[str | None, str, bytes]:
+    """The exercise a notebook names, and the file its firmware cells make (ex1.py, or ex1.c: the language its
+    FIRMWARE cell chooses) with their code, read as `appsim grade` reads it (IPython magics made comments, so its
+    lines are the cells'); FirmwareError if it has none or is no notebook."""
+    from appsim.workshop.grading.submissions import firmware_from_notebook
+
+    exercise, firmware = firmware_from_notebook(path.name, read_firmware(path))
+    if isinstance(firmware, Fault):
+        raise FirmwareError(firmware.message)
+    return exercise, *firmware
+
+
 def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable,
             c_options: Sequence[str] = ()) -> Firmware:
-    """The firmware as a runnable thing; one that does not load is `Fatal`, with its line. `c_options` are C18's
-    options for a .c file."""
+    """The firmware as a runnable thing (a notebook's firmware cell for a .ipynb file); one that does not load is
+    `Fatal`, with its line. `c_options` are C18's options for a .c file (or a notebook's C cell)."""
     if isinstance(firmware, (str, Path)):
         path = Path(firmware)
+        if path.suffix.lower() == ".ipynb":
+            def from_notebook() -> ModuleType:
+                _, graded, source = notebook_firmware(path)
+                return load_source(path, source, language="c" if is_c(graded) else "python", c_options=c_options)
+            return loaded(from_notebook, str(path), str(path))
         return loaded(lambda: load_firmware(path, c_options=c_options), str(path), str(path))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):
@@ -99,7 +112,11 @@ def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable,
                                       "loops forever, as main() does in EX1.C"))
         filename = getattr(firmware, "__file__", None)
         label = Path(filename).name if filename else firmware.__name__
-        return Firmware(firmware.main, filename, label, identity_of(firmware), language_of(firmware))
+        try:
+            routines = interrupt_routines(firmware)
+        except FirmwareError as error:
+            raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
+        return Firmware(firmware.main, filename, label, identity_of(firmware), routines, language_of(firmware))
     load = getattr(firmware, "load", None)
     if callable(load):
         return load()               # it loads itself, with its own options
@@ -109,40 +126,53 @@ def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable,
     raise TypeError(f"firmware is a file path, a loaded firmware module or a main() function; got {firmware!r}")
 
 
-def placement(exercise: str, firmware: Firmware, message_id: int | None) -> tuple[int, int]:
-    """The station (1..6) the student's board takes and the identifier it sends as MESSAGE_ID1.
+@dataclass(frozen=True)
+class Placement:
+    """Where the student's board goes in the classroom: the station (1..6) whose place it takes, the identifiers it
+    sends (MESSAGE_ID1, and Ex5's RTR_ID), and, if one is no station's, why (in the student's names): the checks that
+    depend on the station fail with it, everything else is judged all the same."""
 
-    From `message_id` if given, else from the firmware as loaded: its MESSAGE_ID1 (Ex5: its RTR_ID names the
-    station); without one, station 1. Ex1 runs off the bus in Loopback mode, so any standard identifier will do
-    there (the workshop's own fix sets MESSAGE_ID1 to the filter's 0x088); on the bus it must be a station's.
-    """
-    if message_id is not None:
-        return _station_by(message_id, "message_id", STATION_IDS, "0x100, 0x110 .. 0x150"), message_id
-    own = firmware.identity.get("MESSAGE_ID1")
-    if exercise == "ex1" and own is not None:
-        if not 0 <= own <= STANDARD_ID_MAX:
-            raise Fatal(Fault("station", f"MESSAGE_ID1 = {_shown(own)} is not a standard identifier: CAN's "
-                                         f"11-bit identifiers are 0x000 .. 0x{STANDARD_ID_MAX:03X}."))
-        return (STATION_IDS.index(own) + 1 if own in STATION_IDS else 1), own
+    station: int
+    own_id: int
+    rtr_id: int
+    problem: str | None = None
+
+
+STATIONS_SAY = {"MESSAGE_ID1": "0x100, 0x110 ... 0x150", "RTR_ID": "0x81 ... 0x86 (0x100 -> 0x81 ... 0x150 -> 0x86)"}
+
+
+def placement(exercise: str, firmware: Firmware, message_id: int | None = None) -> Placement:
+    """The student's board's place, from `message_id` if given, else from the firmware as loaded: its MESSAGE_ID1
+    (Ex5: its RTR_ID names the station); without one, station 1. Ex1 runs off the bus in Loopback mode, so any standard
+    identifier will do there (the workshop's own fix sets MESSAGE_ID1 to the filter's 0x088); on the bus an
+    identifier that is no station's takes station 1's place, and the checks say what is wrong with it."""
+    own = firmware.identity.get("MESSAGE_ID1") if message_id is None else message_id
     rtr_id = firmware.identity.get("RTR_ID")
-    if exercise == "ex5" and rtr_id is not None:
-        station = _station_by(rtr_id, "RTR_ID", RTR_IDS, "0x81 .. 0x86 (0x100 -> 0x81 ... 0x150 -> 0x86)")
-        return station, STATION_IDS[station - 1]
+    if exercise == "ex5" and rtr_id is not None and message_id is None:
+        if rtr_id in RTR_IDS:
+            station = RTR_IDS.index(rtr_id) + 1
+            return Placement(station, STATION_IDS[station - 1], rtr_id)
+        return Placement(1, STATION_IDS[0], rtr_id, _no_station("RTR_ID", rtr_id))
     if own is None:
-        return 1, STATION_IDS[0]
-    station = _station_by(own, "MESSAGE_ID1", STATION_IDS, "0x100, 0x110 .. 0x150")
-    return station, own
+        return Placement(1, STATION_IDS[0], RTR_IDS[0])
+    if own in STATION_IDS:
+        station = STATION_IDS.index(own) + 1
+        return Placement(station, own, RTR_IDS[station - 1])
+    if exercise == "ex1" and 0 <= own <= STANDARD_ID_MAX:
+        return Placement(1, own, RTR_IDS[0])
+    problem = (f"MESSAGE_ID1 = {shown(own)} is not a standard identifier: CAN's 11-bit identifiers are 0x000 .. "
+               f"0x{STANDARD_ID_MAX:03X}." if exercise == "ex1" else _no_station("MESSAGE_ID1", own))
+    return Placement(1, own, RTR_IDS[0], problem)
 
 
-def _station_by(value: int, name: str, ids: tuple[int, ...], which: str) -> int:
-    if value in ids:
-        return ids.index(value) + 1
-    raise Fatal(Fault("station", f"{name} = {_shown(value)} is not a station's: the classroom's stations use "
-                                 f"{which}, one each. Set {name} to the one assigned to you."))
+def _no_station(name: str, value: int) -> str:
+    return (f"{name} = {shown(value)} is not a station's identifier: the classroom's stations use "
+            f"{STATIONS_SAY[name]}, one each. Set {name} to the one assigned to you.")
 
 
-def _shown(value: int) -> str:
-    return f"0x{value:03X}" if value >= 0 else str(value)
+def quoted(text: str, most: int = 80) -> str:
+    """Text the firmware produced, quoted for a message: its first `most` characters, and how long it was."""
+    return repr(text) if len(text) <= most else f"{text[:most]!r}... ({len(text):,} characters)"
 
 
 def hex_id(value: int) -> str:
@@ -183,12 +213,15 @@ def decimal_values(text: str) -> list[int]:
 class Trial:
     """The classroom for one check run: seeded potentiometers, the student's board, the simulated clock."""
 
-    def __init__(self, exercise: str, firmware: Firmware, station: int, seed: int, own_id: int | None = None):
+    def __init__(self, exercise: str, firmware: Firmware, station: int | Placement, seed: int):
         self.exercise = exercise
         self.firmware = firmware
-        self.station = station
-        self.own_id = STATION_IDS[station - 1] if own_id is None else own_id
-        self.rtr_id = RTR_IDS[station - 1]
+        place = station if isinstance(station, Placement) else Placement(station, STATION_IDS[station - 1],
+                                                                          RTR_IDS[station - 1])
+        self.station = place.station
+        self.own_id = place.own_id
+        self.rtr_id = place.rtr_id
+        self.identity_problem = place.problem     # MESSAGE_ID1 (Ex5: RTR_ID) is no station's: why, in its names
         draw = random.Random(seed)
         values = draw.sample(range(1024), STATIONS + 3)       # distinct, so no value can stand in for another
         self.potentiometers = values[:STATIONS]
@@ -220,7 +253,7 @@ class Trial:
                                       master_potentiometer=self.master_potentiometers[0])
         board = self._board = (room.station(self.station) if own_board is None
                                else APP023(self.bus, own_board, potentiometer=self.potentiometers[-1]))
-        board.run(self.firmware.runnable)
+        board.run(self.firmware.runnable, self.firmware.routines)
         return room
 
     def node(self, name: str, main: Callable[[], object]) -> PIC18F8680:
@@ -242,6 +275,13 @@ class Trial:
             raise Fatal(Fault("returned", f"main() returned (by {ms(self.now)}): firmware has nowhere to return to, "
                                           "so main() must loop forever (`while True:` around the work, as "
                                           "`while(1)` in EX1.C's main())."))
+        for trace, what in ((self.bus.trace, "frames and error frames on the bus"),
+                            (self.bus.loopback_trace, "frames sent in Loopback mode")):
+            if trace.dropped:
+                raise Fatal(Fault("memory", f"memory limit: a check keeps the last {trace.window:,} {what}, and "
+                                            f"{trace.total:,} went by in {ms(self.now)}, so the check cannot see what "
+                                            "the firmware did: a loop that sends without waiting (CANSendMessage "
+                                            "on every turn, at a bit rate far above the workshop's 125 kbit/s?)"))
         for board in self.bus.boards():
             if not isinstance(board, PIC18F8680):
                 continue

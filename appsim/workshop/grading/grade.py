@@ -19,8 +19,9 @@ import time
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any, TextIO
+from typing import IO, Any, NamedTuple, TextIO
 
+from appsim import provenance
 from appsim.errors import GradeError, SandboxUnavailable
 from appsim.workshop.course import EXERCISE_FILES, EXERCISES
 from appsim.workshop.grading.results import (
@@ -48,22 +49,30 @@ ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest fi
 # ====================================================================== the command
 
 def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: Path | None = None,
-        gradescope_path: Path | None = None, jobs: int | None = None, seed: int | None = None,
+        gradescope_path: str | Path | None = None, jobs: int | None = None, seed: int | None = None,
         limits: Limits = DEFAULT_LIMITS, trusted: bool = False, regrade: bool = False,
-        out: TextIO = sys.stdout) -> list[Record]:
-    """Grade the submissions under `paths`, resuming from `results`; the records of these submissions, by name."""
+        out: TextIO = sys.stdout, memory: dict[tuple[str, str], Memory] | None = None) -> list[Record]:
+    """Grade the submissions under `paths`, resuming from `results`; the records of these submissions, by name.
+
+    `gradescope_path` is a folder of NAME.json (for several submissions, or given as a folder: one that exists or a
+    name ending in "/"), else the one submission's results.json. `memory`, if given, gets the grading worker's memory
+    for each (submission, exercise) graded (see `Memory`)."""
     if sys.platform == "win32":
         raise GradeError("appsim grade runs on Linux (or macOS with --trusted); on Windows, run it in WSL")
     results = results or default_results([Path(p) for p in paths])
     check_output(results, "the results file (--json)")
     if csv_path is not None:
         check_output(csv_path, "the gradebook (--csv)")
-    walls = None if trusted else _walls([*map(Path, paths), results, csv_path, gradescope_path])
+    gradescope = None if gradescope_path is None else Path(gradescope_path)
+    walls = None if trusted else _walls([*map(Path, paths), results, csv_path, gradescope])
     with _Pool(limits, walls, jobs) as pool:           # the workers load while the submissions are read
         submissions = find_submissions([Path(p) for p in paths])
-        if gradescope_path is not None:
-            check_output(gradescope_path, "the Gradescope output (--gradescope)", folder=len(submissions) > 1)
+        gradescope_folder = gradescope is not None and (len(submissions) != 1 or gradescope.is_dir()
+                                                        or str(gradescope_path).endswith(("/", os.sep)))
+        if gradescope is not None:
+            check_output(gradescope, "the Gradescope output (--gradescope)", folder=gradescope_folder)
         kit = kit_version() + "".join(f" {option}" for option in limits.c_options)   # C18's -Oi grades otherwise
+        commit = provenance.commit()
         book = ResultsFile(results)
         try:
             previous = book.records()
@@ -73,10 +82,13 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
             todo = [s for s in submissions if regrade or not still_valid(previous.get(s.name), s.digest, seed, kit)]
             kept = len(submissions) - len(todo)
             print(f"appsim grade: {len(submissions)} submission(s), seed {seed} (the same seed gives the same "
-                  f"grades), results in {results}"
+                  f"grades), kit {kit} (git commit {commit or 'unknown'}), results in {results}"
                   + (f"; {kept} already graded there with this seed and kit, kept" if kept else "")
                   + ("; NOT ISOLATED (--trusted)" if trusted else ""), file=out, flush=True)
-            for number, record in enumerate(pool.grade(todo, seed, kit), start=1):
+            for submission in submissions:
+                if submission.note:
+                    print(f"appsim grade: {printable(submission.name)}: {printable(submission.note)}", file=out)
+            for number, record in enumerate(pool.grade(todo, seed, kit, commit, memory), start=1):
                 with _ctrl_c_held():                # a record kept is a record reported, and the other way round
                     book.append(record)
                     previous[record["submission"]] = record
@@ -87,13 +99,15 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
     records = [previous[s.name] for s in submissions]
     if csv_path is not None:
         write_csv(csv_path, records)
-    if gradescope_path is not None:
-        write_gradescope(gradescope_path, records)
+    if gradescope is not None:
+        write_gradescope(gradescope, records, folder=gradescope_folder)
     total, best = sum(r["score"] for r in records), sum(r["max_score"] for r in records)
-    print(f"graded {len(records)} submission(s): {total}/{best} points in all, mean "
-          f"{total / max(1, len(records)):.1f}/{records[0]['max_score'] if records else 0}; seed {seed}; results in "
-          f"{results}" + (f", gradebook {csv_path}" if csv_path else "")
-          + (f", Gradescope {gradescope_path}" if gradescope_path else ""), file=out)
+    print(f"graded {len(todo)} submission(s)" + (f", kept {kept} already graded" if kept else "")
+          + f": {total}/{best} points in all" + (f" {len(records)}" if kept else "")
+          + f", mean {total / max(1, len(records)):.1f}/{records[0]['max_score'] if records else 0}; seed {seed}; "
+          f"results in {results}"
+          + (f", gradebook {csv_path}" if csv_path else "")
+          + (f", Gradescope {gradescope}{'/' if gradescope_folder else ''}" if gradescope else ""), file=out)
     return records
 
 
@@ -202,8 +216,10 @@ class _Pool:
         for worker in self.workers:
             worker.end()
 
-    def grade(self, submissions: Sequence[Submission], seed: int, kit: str) -> Iterator[Record]:
-        """Each submission's record as soon as all its exercises are graded (in no fixed order)."""
+    def grade(self, submissions: Sequence[Submission], seed: int, kit: str, commit: str | None,
+              memory: dict[tuple[str, str], Memory] | None = None) -> Iterator[Record]:
+        """Each submission's record as soon as all its exercises are graded (in no fixed order); `memory` gets what
+        each exercise's worker held (see `Memory`)."""
         waiting = collections.deque(_Task(n, s, e) for n, (s, e) in
                                     enumerate((s, e) for s in submissions for e in ORDER))
         done: dict[str, dict[str, Record]] = {s.name: {} for s in submissions}
@@ -221,7 +237,8 @@ class _Pool:
             marks[task.exercise] = result
             if len(marks) < len(EXERCISES):
                 return None
-            return record_of(task.submission.name, task.submission.digest, seed, kit, marks)
+            return record_of(task.submission.name, task.submission.digest, seed, kit, marks, commit,
+                             task.submission.origin)
 
         try:
             for worker in self.workers:
@@ -234,7 +251,9 @@ class _Pool:
                     selector.unregister(worker.stdout)
                     task, worker.task = worker.task, None
                     assert task is not None
-                    result = _result(line)
+                    result, held = _result(line)
+                    if held is not None and memory is not None:
+                        memory[task.submission.name, task.exercise] = held
                     # it died (or wrote half a line): the grader's fault, not the student's
                     if result is None:
                         result = _lost(task, seed, "the grader's worker process ended while grading it "
@@ -272,15 +291,29 @@ class _Pool:
         return _Worker(self.settings, self.processors[index % len(self.processors)] if self.processors else None)
 
 
-def _result(line: str) -> Record | None:
-    """A worker's answer line, or None if it is not one (the worker died mid-line)."""
+class Memory(NamedTuple):
+    """What a grading worker held (its resident set, kB) when it took an exercise, and at its peak while grading it."""
+
+    start_kb: int
+    peak_kb: int
+
+    @property
+    def growth_kb(self) -> int:
+        return self.peak_kb - self.start_kb
+
+
+def _result(line: str) -> tuple[Record | None, Memory | None]:
+    """A worker's answer line (None if it is not one: the worker died mid-line) and the memory it held for it."""
     if not line.endswith("\n"):
-        return None
+        return None, None
     try:
-        result = json.loads(line)["result"]
-    except (ValueError, KeyError, TypeError):
-        return None
-    return result if isinstance(result, dict) else None
+        answer = json.loads(line)
+        result, held = answer["result"], answer.get("memory_kb")
+    except (ValueError, KeyError, TypeError, AttributeError):
+        return None, None
+    memory = Memory(*held) if isinstance(held, list) and len(held) == 2 and all(isinstance(v, int) for v in held) \
+        else None
+    return (result if isinstance(result, dict) else None), memory
 
 
 def _lost(task: _Task, seed: int, why: str) -> Record:

@@ -167,14 +167,17 @@ def gradescope(record: Record) -> Record:
         tests.append({"name": exercise, "score": result["score"], "max_score": result["max_score"],
                       "output": "\n".join(lines),
                       "status": "passed" if result["score"] == result["max_score"] else "failed"})
-    return {"score": record["score"], "output": f"Graded by appsim {record.get('kit', '')} with seed {record['seed']}.",
-            "tests": tests}
+    commit = f" (git commit {record['commit']})" if record.get("commit") else ""
+    return {"score": record["score"], "output": f"Graded by appsim {record.get('kit', '')}{commit} with seed "
+                                                f"{record['seed']}.", "tests": tests}
 
 
-def write_gradescope(path: Path, records: Sequence[Record]) -> None:
-    """One submission: `path` is its results.json. More: `path` is a folder of NAME.json, one per submission."""
-    if len(records) == 1:
-        path.write_text(json.dumps(gradescope(records[0]), indent=1) + "\n", encoding="utf-8")
+def write_gradescope(path: Path, records: Sequence[Record], *, folder: bool) -> None:
+    """`folder`: `path` is a folder of NAME.json, one per submission; else `path` is the one submission's
+    results.json."""
+    if not folder:
+        [record] = records
+        path.write_text(json.dumps(gradescope(record), indent=1) + "\n", encoding="utf-8")
         return
     path.mkdir(parents=True, exist_ok=True)
     for record in records:
@@ -202,9 +205,12 @@ def summary_line(record: Record) -> str:
     return f"{printable(record['submission']):<24} {record['score']:>3}/{record['max_score']:<3}  " + "  ".join(parts)
 
 
-def record_of(name: str, digest: str, seed: int, kit: str, exercises: Mapping[str, Record]) -> Record:
+def record_of(name: str, digest: str, seed: int, kit: str, exercises: Mapping[str, Record],
+              commit: str | None = None, origin: str = "") -> Record:
+    """A submission's record; `commit` is the kit's git commit (`appsim.provenance.commit`), for the instructor to
+    match a grade to (the record is kept or graded again by `kit` alone); `origin`, where in the class it came from."""
     ordered = {exercise: exercises[exercise] for exercise in EXERCISES}
-    return {"submission": name, "hash": digest, "seed": seed, "kit": kit,
+    return {"submission": name, "origin": origin, "hash": digest, "seed": seed, "kit": kit, "commit": commit,
             "score": sum(e["score"] for e in ordered.values()),
             "max_score": sum(e["max_score"] for e in ordered.values()),
             "exercises": ordered}

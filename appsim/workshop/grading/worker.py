@@ -89,10 +89,35 @@ def main(settings: dict[str, Any], tasks: IO[str], verdicts: IO[str]) -> None:
         for line in tasks:
             task: dict[str, Any] = json.loads(line)
             source = None if task["source"] is None else base64.b64decode(task["source"])
+            start_kb = memory_kb("VmRSS")
+            _forget_peak()
             result = grade_exercise(sandbox, task["exercise"], task["name"], source, task["seed"], task["problem"],
                                     owner=task["owner"], spare=task["spare"])
-            verdicts.write(json.dumps({"task": task["task"], "result": result}) + "\n")
+            verdicts.write(json.dumps({"task": task["task"], "result": result,
+                                       "memory_kb": [start_kb, memory_kb("VmHWM")]}) + "\n")
             verdicts.flush()
+
+
+def _forget_peak() -> None:
+    """Start this process's memory high-water mark again from what it holds now (Linux: clear_refs 5)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as refs:
+            refs.write("5")
+    except OSError:
+        pass
+
+
+def memory_kb(which: str) -> int | None:
+    """This process's resident set now (`VmRSS`), or its high-water mark since `_forget_peak` (`VmHWM`), in kB; None
+    where the system does not say."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith(which + ":"):
+                    return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
 
 
 def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | None, seed: int,

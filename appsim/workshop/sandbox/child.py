@@ -11,12 +11,23 @@ import importlib
 import json
 import os
 import resource
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from appsim import errors
-from appsim.chip.sfr import ADDRESSES, RUNNING_MCU, SFRNames, firmware_entry, firmware_location
-from appsim.errors import FirmwareError
+from appsim.chip.sfr import (
+    ADDRESSES,
+    HIGH_VECTOR,
+    RUNNING_MCU,
+    SFRNames,
+    firmware_entry,
+    firmware_location,
+    missing_routine,
+)
+from appsim.errors import FirmwareError, NoInterruptRoutine
+from appsim.firmware.identity import identity_of
+from appsim.firmware.interrupts import routines
 from appsim.firmware.loader import crash_message, load_source
 from appsim.workshop.sandbox import protocol as wire
 from appsim.workshop.sandbox.protocol import Channel
@@ -32,6 +43,10 @@ class RemoteMCU(SFRNames):
     nothing changes on the board, so a register it offers is read here, as PIC18F8680.read would read it, and the
     grader does that read afterwards, in order (a SERVED item). A write the read-ahead says the outcome of (a byte for
     a busy USART) goes on from there. Only a read that would park a polling loop goes out.
+
+    Interrupts (see the protocol's notes): while the board may take one (`_live`), every write but a foretold one, a
+    spend beyond the budget and an empty loop's wait go out and wait; an answer may be preceded by VECTOR, and then the
+    firmware's routine runs here, at that point of the firmware, as the board's core would call it there.
     """
 
     sfr_addresses = ADDRESSES
@@ -42,6 +57,8 @@ class RemoteMCU(SFRNames):
         self._empty = len(self._pending)
         self.glcd = RemoteDisplay(self)
         self.access_ps = self.tcy_ps = 0
+        self.routines: dict[int, Callable[[], None]] = {}   # the firmware's interrupt routines by vector
+        self._live = False                              # INTCON.GIEH on the board: it may take an interrupt
         self._ahead: dict[int, int] | None = None       # address -> value, while the read-ahead holds
         self._after: dict[int, dict[int, int]] = {}     # written address -> the read-ahead after that write
         self._left_ps = 0                               # what the firmware may still spend before it runs out
@@ -73,9 +90,12 @@ class RemoteMCU(SFRNames):
             if reply[4:5] != wire.VALUE:
                 raise RuntimeError("the grader answered a register read with something else")
         if len(reply) > 6:
-            self._left_ps, current, self._ahead, self._seen, sites, self._after = wire.decode_read_ahead(reply[6:])
-            self._sites, self._sites_current = sites, current
+            self._read_ahead(reply[6:])
         return reply[5]
+
+    def _read_ahead(self, data: bytes) -> None:
+        self._left_ps, current, self._ahead, self._seen, sites, self._after = wire.decode_read_ahead(data)
+        self._sites, self._sites_current = sites, current
 
     def _served(self, address: int, place: int, value: int) -> int:
         self._left_ps -= self.access_ps
@@ -85,28 +105,71 @@ class RemoteMCU(SFRNames):
         return value
 
     def write(self, address: int, value: int) -> None:
-        item = wire.WRITE_ITEM.pack(wire.WRITE, _address(address), value & 0xFF)
+        address = _address(address)
         after = self._after.get(address) if self._ahead is not None else None
         if after is not None and self._left_ps >= self.access_ps:
             self._left_ps -= self.access_ps     # PIC18F8680.read_ahead: its time, a change, and these values after it
             after.pop(address, None)
             self._ahead, self._after, self._seen, self._sites_current = after, {}, set(), False
         else:
-            self._ahead = None                  # the board changes: what was read ahead no longer holds
-        self._pending += item
+            after = self._ahead = None          # the board changes: what was read ahead no longer holds
+        if address == wire.INTCON or (self._live and after is None):
+            self._pending += wire.WRITE_ITEM.pack(wire.WRITE_WAIT, address, value & 0xFF)
+            self.flush()
+            self._go_on()
+            return
+        self._pending += wire.WRITE_ITEM.pack(wire.WRITE, address, value & 0xFF)
         if len(self._pending) > wire.BATCH_BYTES:
             self.flush()
 
     def spend_cycles(self, cycles: int) -> None:
         if not isinstance(cycles, int) or cycles < 0:
             raise ValueError(f"instruction cycles are a whole number >= 0; got {cycles!r}")
+        cycles = min(cycles, (1 << 64) - 1)
+        if self._live and (self._ahead is None or cycles * self.tcy_ps > self._left_ps):
+            self._ahead = None                  # the board may hand over, and vector, meanwhile
+            self._pending += wire.SPEND_ITEM.pack(wire.SPEND_WAIT, cycles)
+            self.flush()
+            self._go_on()
+            return
         if self._ahead is not None:
             self._left_ps -= cycles * self.tcy_ps
             if self._left_ps < 0:               # it reaches the next event: the board may change
                 self._ahead = None
-        self._pending += wire.SPEND_ITEM.pack(wire.SPEND, min(cycles, (1 << 64) - 1))
+        self._pending += wire.SPEND_ITEM.pack(wire.SPEND, cycles)
         if len(self._pending) > wire.BATCH_BYTES:
             self.flush()
+
+    def wait_for_interrupt(self, loop: str) -> None:
+        """An empty waiting loop's turn (PIC18F8680.wait_for_interrupt, on the board): until an interrupt is taken."""
+        self._ahead = None
+        text = loop.encode()[:wire.MAX_LOOP].decode("utf-8", "ignore").encode()     # whole characters
+        self._pending += wire.IDLE_HEAD.pack(wire.IDLE, len(text)) + text
+        self.flush()
+        self._go_on()
+
+    def _go_on(self) -> None:
+        """The answer to a WRITE_WAIT, SPEND_WAIT or IDLE: interrupts live or not, and a read-ahead."""
+        reply = self.answer()
+        if reply[:1] != wire.GO_ON or len(reply) < 2:
+            raise RuntimeError("the grader answered a waiting access with something else")
+        self._live = bool(reply[1])
+        self._read_ahead(reply[2:])
+
+    def _vector(self, reply: bytes) -> None:
+        """VECTOR: the board's core takes an interrupt here; the firmware's routine runs, then RETFIE."""
+        vector = reply[1]
+        self._live = bool(reply[2])
+        self._read_ahead(reply[3:])
+        routine = self.routines.get(vector)
+        if routine is None:
+            raise NoInterruptRoutine(missing_routine(vector))
+        routine()
+        self._ahead = None                      # the answer it waits for next brings a fresh one
+        self._pending += wire.RETFIE_ITEM.pack(wire.RETFIE, vector)
+        self.flush()
+        if vector == HIGH_VECTOR:
+            self._live = True                   # RETFIE sets GIE/GIEH again (a low routine's sets GIEL)
 
     def display(self, item: bytes) -> None:
         self._ahead = None
@@ -134,14 +197,18 @@ class RemoteMCU(SFRNames):
             os._exit(0)
 
     def answer(self) -> bytes:
-        """The grader's answer to the access that ended the batch (an error the board raised, raised here)."""
-        reply = self._channel.receive()
-        if reply is None:
-            os._exit(0)                 # the grader ended this run
-        if reply[:1] == wire.ERROR:
-            name, text = json.loads(reply[1:])
-            raise _error_class(name)(text)
-        return reply
+        """The grader's answer to the access that ended the batch (an error the board raised, raised here); the
+        interrupt routines the board vectors to before it answers run first."""
+        while True:
+            reply = self._channel.receive()
+            if reply is None:
+                os._exit(0)             # the grader ended this run
+            if reply[:1] == wire.ERROR:
+                name, text = json.loads(reply[1:])
+                raise _error_class(name)(text)
+            if reply[:1] != wire.VECTOR:
+                return reply
+            self._vector(reply)
 
 
 class RemoteDisplay:
@@ -159,8 +226,9 @@ class RemoteDisplay:
                                                 max(-clamp, min(column, clamp))))
 
     def write(self, codes: list[int]) -> None:
-        codes = codes[:0xFFFF]          # the screen shows 21 of them; the rest only moves the cursor further out
-        self._mcu.display(wire.TEXT_HEAD.pack(wire.DISPLAY, wire.TEXT, len(codes)) + bytes(codes))
+        shown = codes[:wire.TEXT_SHOWN]     # the screen shows 21 of them at most; the rest only moves the cursor on
+        self._mcu.display(wire.TEXT_HEAD.pack(wire.DISPLAY, wire.TEXT, min(len(codes), wire.TEXT_LENGTH_MAX),
+                                              len(shown)) + bytes(shown))
 
 
 def _address(address: int) -> int:
@@ -223,11 +291,12 @@ def main(settings: dict[str, Any], read_fd: int, write_fd: int) -> None:
     except FirmwareError as error:
         mcu.report(wire.LOAD_FAILED, str(error))
         return
-    identity = {}
-    for name in ("MESSAGE_ID1", "RTR_ID"):              # what it calls itself: integers only (see checks.trial)
-        value = getattr(module, name, None)
-        if type(value) is int and -wire.IDENTITY_LIMIT < value < wire.IDENTITY_LIMIT:
-            identity[name] = value
+    try:
+        identity = identity_of(module)                  # what it calls itself, read as `appsim check` reads it
+    except BaseException as error:                      # its module's own __getattr__ ran, and raised
+        mcu.report(wire.LOAD_FAILED, crash_message(error, str(path)))
+        return
+    mcu.routines = routines(module)
     mcu.report(wire.LOADED, json.dumps(identity))
     go = channel.receive()
     if go is None or go[:1] != wire.GO:

@@ -72,15 +72,18 @@ class Zygote:
         self.cpu_limit_s = int(limits.time_s) + 2   # each child's RLIMIT_CPU (SIGXCPU); SIGKILL a second later
         settings = {"memory_mb": limits.memory_mb, "file_mb": limits.file_mb, "cpu_s": self.cpu_limit_s,
                     "seccomp": seccomp_program().hex() if self.isolated else "", "control_fd": theirs.fileno(),
-                    "path": import_path(), "c_options": list(limits.c_options)}
-        argv = [sys.executable, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
+                    "path": import_path() if isolation is None else list(isolation.path),
+                    "c_options": list(limits.c_options)}
+        python = sys.executable if isolation is None else isolation.executable
+        argv = [python, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
         passed = [theirs.fileno()]
         if isolation is not None:
             read, write = os.pipe()
             os.write(write, seccomp_program(may_fork=True))
             os.close(write)
             passed.append(read)
-            argv = isolation.command(argv, read)
+            argv, copies = isolation.command(argv, read)
+            passed += copies
         self.expires_at = time.monotonic() + BOOT_S
         self.expired = False
         self._ended: dict[int, tuple[int, float]] = {}     # children it reported ended: pid -> (status, CPU seconds)

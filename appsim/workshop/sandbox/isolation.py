@@ -1,11 +1,13 @@
 """The operating system's walls around one sandboxed firmware: Linux namespaces by bubblewrap, and a seccomp filter.
 
 Each child gets its own user, PID, mount, network, IPC and UTS namespaces: it sees only itself, and, read-only, the
-Python runtime and the kit (reference solutions hidden); it can write nowhere, has no network and no capabilities,
-cannot start a process or a thread, and dies with the grader. docs/grading.md says why bubblewrap.
+Python runtime and copies of the kit's package (no solutions) and of the packages it imports (`mounts`); it can write
+nowhere, has no network and no capabilities, cannot start a process or a thread, and dies with the grader.
+docs/grading.md says why bubblewrap.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import platform
@@ -18,9 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from appsim.errors import SandboxUnavailable
+from appsim.workshop.sandbox import mounts
 
-SYSTEM = ("/usr", "/lib", "/lib32", "/lib64", "/libx32", "/bin", "/sbin", "/etc/ld.so.cache", "/etc/localtime",
-          "/etc/alternatives")
 # /proc files that the sandbox's user could write were it the grader's own root (it has no capabilities, but is the
 # owner): the kernel's settings, the magic SysRq key, interrupt routing. Covered read-only, whoever grades.
 PROC_READ_ONLY = ("/proc/sys", "/proc/sysrq-trigger", "/proc/irq", "/proc/bus", "/proc/fs", "/proc/driver")
@@ -77,25 +78,52 @@ def seccomp_program(machine: str | None = None, *, may_fork: bool = False) -> by
 # ------------------------------------------------------------------ what the child sees
 @dataclass(frozen=True)
 class Isolation:
-    """How to start a sandboxed child: bubblewrap with these read-only folders, these hidden inside them."""
+    """How to start a sandboxed child: bubblewrap, and the sandbox's files (see `mounts.Layout`)."""
 
     bwrap: str
-    readable: tuple[str, ...]           # bound read-only at the same path
-    hidden: tuple[str, ...]             # covered by an empty folder (or an empty file) inside what is readable
+    executable: str
+    binds: tuple[str, ...]
+    links: tuple[tuple[str, str], ...]
+    covered: tuple[str, ...]
+    copies: tuple[tuple[str, str], ...]
+    path: tuple[str, ...]
 
-    def command(self, argv: Sequence[str], seccomp_fd: int) -> list[str]:
-        """The bwrap command line that runs `argv` in a fresh sandbox (with the filter read from `seccomp_fd`).
+    def __post_init__(self) -> None:        # from the JSON a worker gets: lists back to tuples
+        for name in ("binds", "covered", "path"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        for name in ("links", "copies"):
+            object.__setattr__(self, name, tuple(tuple(pair) for pair in getattr(self, name)))
+
+    def command(self, argv: Sequence[str], seccomp_fd: int) -> tuple[list[str], list[int]]:
+        """The bwrap command line that runs `argv` in a fresh sandbox (with the filter read from `seccomp_fd`), and
+        the descriptors it reads the copies from (to pass to it, and close once it started).
 
         The root and /dev are read-only, and nothing writable is mounted: firmware acts only through the board, so it
         has no use for files (its source reaches it through its pipe). `argv` runs as the sandbox's pid 1, so no
         other process is in there (nor its environment or its command line in /proc).
         """
         command = [self.bwrap]
-        for path in self.readable:
-            command += ["--ro-bind-try", path, path]
-        for path in self.hidden:
+        for path in self.binds:
+            command += ["--ro-bind", path, path]
+        for target, link in self.links:
+            command += ["--symlink", target, link]
+        for path in self.covered:
             command += (["--tmpfs", path, "--remount-ro", path] if os.path.isdir(path)
                         else ["--ro-bind", os.devnull, path])
+        descriptors = []
+        try:
+            for path, data in mounts.contents(self.copies):
+                descriptor = os.memfd_create("appsim-sandbox-file")
+                descriptors.append(descriptor)
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(descriptor, view):]
+                os.lseek(descriptor, 0, os.SEEK_SET)
+                command += ["--perms", "0444", "--file", str(descriptor), path]
+        except BaseException:
+            for descriptor in descriptors:
+                os.close(descriptor)
+            raise
         command += ["--proc", "/proc"]
         for path in PROC_READ_ONLY:
             command += ["--ro-bind-try", path, path]
@@ -104,11 +132,12 @@ class Isolation:
                     "--new-session", "--cap-drop", "ALL", "--uid", "65534", "--gid", "65534", "--hostname", "sandbox",
                     "--clearenv", *(a for name, value in ENVIRONMENT.items() for a in ("--setenv", name, value)),
                     "--chdir", "/", "--seccomp", str(seccomp_fd), *argv]
-        return command
+        return command, descriptors
 
 
 def import_path() -> list[str]:
-    """Where the child imports from: the folder holding the kit's package, then the grader's own installation's."""
+    """Where a child outside a sandbox (--trusted) imports from: the folder holding the kit's package, then the
+    grader's own installation's."""
     import appsim
 
     kit = str(Path(appsim.__file__).resolve().parent.parent)
@@ -117,52 +146,25 @@ def import_path() -> list[str]:
 
 
 def isolation(secrets: Iterable[Path] = ()) -> Isolation:
-    """The walls for this machine; SandboxUnavailable says why there are none (and what an instructor can do)."""
-    bwrap = _usable_bwrap()
-    readable = _readable()
-    hidden = sorted({str(path) for path in _solutions(readable) | {Path(p).resolve() for p in secrets}
-                     if _inside_any(path, readable) and path.exists()})
-    return Isolation(bwrap, tuple(readable), tuple(hidden))
+    """The walls for this machine; SandboxUnavailable says why there are none (and what an instructor can do).
+    The sandbox's files are worked out by a probe of the firmware library (`mounts`), once per import path."""
+    key = (mounts.executable(), tuple(sys.path), tuple(sorted(str(Path(p).resolve()) for p in secrets)))
+    layout = _layouts.get(key)
+    started = mounts.start_probe() if layout is None and sys.platform == "linux" else None
+    try:
+        bwrap = _usable_bwrap()
+        if layout is None:
+            assert started is not None
+            layout = _layouts[key] = mounts.layout(started, secrets)
+    except mounts.LayoutError as error:
+        raise SandboxUnavailable(f"the sandbox cannot be given the firmware library: {error}") from None
+    finally:
+        if started is not None:
+            mounts.stop(started)
+    return Isolation(bwrap, **dataclasses.asdict(layout))
 
 
-def _readable() -> list[str]:
-    import appsim
-
-    roots = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix,
-             str(Path(sys.executable).resolve().parent.parent), str(Path(appsim.__file__).resolve().parent),
-             *import_path()[1:]}
-    kit_checkout = _checkout()
-    chosen = [path for path in SYSTEM if os.path.exists(path)]
-    for root in sorted(os.path.realpath(r) for r in roots if r):
-        if kit_checkout is not None and _inside_any(Path(kit_checkout), [root]):
-            continue                    # a folder holding the whole checkout (PYTHONPATH=.): only appsim/ is given
-        if not _inside_any(Path(root), chosen):
-            chosen.append(root)
-    return chosen
-
-
-def _checkout() -> str | None:
-    """The repository the kit runs from, if it is a checkout (its solutions/ lie outside the package)."""
-    from appsim.workshop import course
-
-    package = Path(course.__file__).resolve().parents[1]
-    return None if course.SOLUTIONS.resolve().is_relative_to(package) else str(package.parent)
-
-
-def _solutions(readable: Iterable[str]) -> set[Path]:
-    """Every copy of the reference solutions that lies inside a readable folder (an installed kit, a checkout)."""
-    from appsim.workshop import course
-
-    found = {course.SOLUTIONS.resolve()}
-    for root in [*readable, *import_path()]:
-        for candidate in (Path(root) / "appsim" / "workshop" / "solutions", Path(root) / "solutions"):
-            if (candidate / "ex1.py").is_file():
-                found.add(candidate.resolve())
-    return found
-
-
-def _inside_any(path: Path, roots: Iterable[str]) -> bool:
-    return any(path == Path(root) or path.is_relative_to(root) for root in roots)
+_layouts: dict[tuple[object, ...], mounts.Layout] = {}     # by import path: each probe costs about 0.1 s
 
 
 @functools.lru_cache(maxsize=1)

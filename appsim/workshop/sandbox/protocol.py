@@ -9,6 +9,9 @@ import json
 import os
 import struct
 
+from appsim.chip.sfr import HIGH_VECTOR, INTERRUPT_REGISTERS, LOW_VECTOR
+from appsim.firmware.identity import LIMIT as identity_limit
+
 LENGTH = struct.Struct("<I")
 MAX_FROM_CHILD = 64 << 10           # a batch is flushed at BATCH_BYTES; texts are cut at MAX_TEXT
 MAX_FROM_GRADER = 1 << 20           # the firmware's source, at most MAX_SOURCE
@@ -21,17 +24,33 @@ MAX_IDENTITY = 512
 # RETURNED, RAISED + text, OUT_OF_MEMORY, EXITED. Or a BATCH of accesses: WRITE address:u16 value:u8, SPEND
 # cycles:u64 and SERVED address:u16 site:i64 value:u8 (a read the child answered from its read-ahead) items, ended by
 # at most one item that waits for its answer, READ address:u16 site:i64 or DISPLAY op:u8 (INITIAL; CURSOR line:i64
-# column:i64; TEXT count:u16 codes:u8*count).
+# column:i64; TEXT length:u32 count:u16 codes:u8*count, the first `count` of the `length` codes written, count =
+# min(length, TEXT_SHOWN): the screen shows at most 21 of them, the rest only moves the cursor on); or, where the
+# board may take an interrupt (see Interrupts below), WRITE_WAIT address:u16 value:u8, SPEND_WAIT cycles:u64, IDLE
+# length:u16 loop:utf-8 (an empty waiting loop, by its line: PIC18F8680.wait_for_interrupt), or RETFIE vector:u8
+# (the routine the grader vectored to returns).
 HELLO, LOADED, LOAD_FAILED, RETURNED, RAISED, OUT_OF_MEMORY, EXITED, BATCH = (
     b"H", b"L", b"F", b"E", b"X", b"M", b"Q", b"B")
 WRITE, SPEND, SERVED, READ, DISPLAY = b"W", b"S", b"r", b"R", b"D"
+WRITE_WAIT, SPEND_WAIT, IDLE, RETFIE = b"w", b"s", b"I", b"T"
 INITIAL, CURSOR, TEXT = 0, 1, 2
 # Grader to child: SOURCE name-length:u16 name source; GO access_ps:u64 tcy_ps:u64; VALUE value:u8 and a read-ahead
 # (READ_AHEAD: budget_ps:u64 current:u8 entries:u16 sites:u16 writes:u8, then the entries' addresses (u16 each), their
 # values (u8 each) and whether each was seen (u8 each), then sites x (address:u16 site:i64), then writes x (address:u16
 # and the entries' values after a write there, u8 each); see PIC18F8680.read_ahead); DONE (display); ERROR + JSON
-# [class, text].
-SOURCE, GO, VALUE, DONE, ERROR = b"S", b"G", b"V", b"K", b"Z"
+# [class, text]; GO_ON live:u8 and a read-ahead (a WRITE_WAIT, SPEND_WAIT or IDLE done); VECTOR vector:u8 live:u8 and
+# a read-ahead (run the routine at that vector now, then say RETFIE; the answer to the waiting access comes after).
+SOURCE, GO, VALUE, DONE, ERROR, GO_ON, VECTOR = b"S", b"G", b"V", b"K", b"Z", b"O", b"J"
+
+# Interrupts. `live` is INTCON.GIEH as the board has it: while it is 0 the board takes no interrupt, and only a write
+# of INTCON (which waits: WRITE_WAIT) can change that, so the child batches as it always does. While it is 1, the
+# board may vector wherever it hands over to events or a write changes it, so the child waits for the answer to each
+# write (but one the read-ahead foretells), to a spend beyond its budget, and to its empty waiting loops; a served read
+# and a spend within the budget cannot be interrupted. The child knows `live` from GO_ON and VECTOR, and from RETFIE:
+# a high-priority routine's (or any, with RCON.IPEN = 0) sets GIEH again; a low-priority routine's leaves it as it is.
+INTCON = INTERRUPT_REGISTERS["INTCON"]
+VECTORS = (HIGH_VECTOR, LOW_VECTOR)
+MAX_LOOP = 1024                     # bytes of an IDLE item's loop ("line 12 of ex6.py (`while not done:`)")
 
 # A sandbox's zygote and the grader, on its control socket (one message a packet): FORK with the child's two pipe ends
 # (SCM_RIGHTS), answered FORKED pid:i32 (as the sandbox numbers it); ENDED pid:i32 status:i32 cpu_s:f64 when a child
@@ -50,13 +69,16 @@ READ_AHEAD_SITE = struct.Struct("<Hq")
 WRITE_AHEAD = struct.Struct("<H")
 SPEND_ITEM = struct.Struct("<cQ")
 READ_ITEM = struct.Struct("<cHq")
+IDLE_HEAD = struct.Struct("<cH")
+RETFIE_ITEM = struct.Struct("<cB")
 CURSOR_ITEM = struct.Struct("<cBqq")
 LONE_READ = BATCH + READ            # how a batch of one READ begins, the most common message by far
 LONE_READ_SIZE = 1 + READ_ITEM.size
-TEXT_HEAD = struct.Struct("<cBH")
+TEXT_HEAD = struct.Struct("<cBIH")
+TEXT_SHOWN = 64                     # codes of a text sent: appsim.board.glcd shows at most COLUMNS (21) of them
+TEXT_LENGTH_MAX = (1 << 32) - 1
 NAME_LENGTH = struct.Struct("<H")
 ADDRESSES = range(0x1000)           # the PIC18F8680's data memory: 0x000..0xFFF
-IDENTITY_LIMIT = 1 << 64            # MESSAGE_ID1 / RTR_ID values beyond this are not identifiers of anything
 
 
 class ProtocolError(Exception):
@@ -123,13 +145,15 @@ class Channel:
 # ====================================================================== what a child may say
 
 Access = tuple[bytes, int, int, int]     # (op, first, second, third argument), decoded
-# Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (count; the codes apart).
+# Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (length; the codes apart).
 DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT = b"Di", b"Dc", b"Dt"
+WAITING = frozenset((READ, WRITE_WAIT, SPEND_WAIT, IDLE, DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT))
 
 
 def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
-    """A BATCH message's items, and the codes of a display TEXT that ends it. Only the last item may wait for an
-    answer (a READ or a display item). ProtocolError if anything is off."""
+    """A BATCH message's items, and the bytes that come with the item that ends it (a display TEXT's codes, an IDLE's
+    loop). Only the last item may wait for an answer (READ, WRITE_WAIT, SPEND_WAIT, IDLE, a display item) or end a
+    routine (RETFIE). ProtocolError if anything is off."""
     if len(message) == LONE_READ_SIZE and message.startswith(LONE_READ):
         _, address, site = READ_ITEM.unpack_from(message, 1)
         return [(READ, _address(address), site, 0)], b""
@@ -140,6 +164,8 @@ def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
             op = message[position:position + 1]
             if op == WRITE:
                 _, address, value = WRITE_ITEM.unpack_from(message, position)
+                if address == INTCON:
+                    raise ProtocolError("a write of INTCON that did not wait for its answer")
                 items.append((WRITE, _address(address), value, 0))
                 position += WRITE_ITEM.size
             elif op == SPEND:
@@ -155,6 +181,25 @@ def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
                 items.append((READ, _address(address), site, 0))
                 position += READ_ITEM.size
                 break
+            elif op == WRITE_WAIT:
+                _, address, value = WRITE_ITEM.unpack_from(message, position)
+                items.append((WRITE_WAIT, _address(address), value, 0))
+                position += WRITE_ITEM.size
+                break
+            elif op == SPEND_WAIT:
+                _, cycles = SPEND_ITEM.unpack_from(message, position)
+                items.append((SPEND_WAIT, cycles, 0, 0))
+                position += SPEND_ITEM.size
+                break
+            elif op == RETFIE:
+                _, vector = RETFIE_ITEM.unpack_from(message, position)
+                if vector not in VECTORS:
+                    raise ProtocolError(f"a RETFIE from vector 0x{vector:02X}, where the PIC18 has no routine")
+                items.append((RETFIE, vector, 0, 0))
+                position += RETFIE_ITEM.size
+                break
+            elif op == IDLE:
+                return [*items, (IDLE, 0, 0, 0)], _loop(message, position)
             elif op == DISPLAY:
                 item, codes = _display(message, position)
                 return [*items, item], codes
@@ -177,10 +222,27 @@ def _display(message: bytes, position: int) -> tuple[Access, bytes]:
         _, _, line, column = CURSOR_ITEM.unpack_from(message, position)
         return (DISPLAY_CURSOR, line, column, 0), b""
     if kind == TEXT and rest >= TEXT_HEAD.size:
-        _, _, count = TEXT_HEAD.unpack_from(message, position)
-        if rest - TEXT_HEAD.size == count:
-            return (DISPLAY_TEXT, count, 0, 0), message[position + TEXT_HEAD.size:]
+        _, _, length, count = TEXT_HEAD.unpack_from(message, position)
+        if rest - TEXT_HEAD.size == count == min(length, TEXT_SHOWN):
+            return (DISPLAY_TEXT, length, 0, 0), message[position + TEXT_HEAD.size:]
     raise ProtocolError("a display operation that is not one")
+
+
+def _loop(message: bytes, position: int) -> bytes:
+    """An IDLE item's loop, which ends its batch: as the loader words it, printable UTF-8 of at most MAX_LOOP bytes."""
+    if len(message) - position < IDLE_HEAD.size:
+        raise ProtocolError("an empty loop's wait cut short")
+    _, length = IDLE_HEAD.unpack_from(message, position)
+    loop = message[position + IDLE_HEAD.size:]
+    if len(loop) != length or not 0 < length <= MAX_LOOP:
+        raise ProtocolError("an empty loop's wait whose loop is not the length it says, or too long to be one")
+    try:
+        text = loop.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ProtocolError("an empty loop's wait whose loop is not text") from None
+    if not text.isprintable():
+        raise ProtocolError("an empty loop's wait whose loop is not printable")
+    return loop
 
 
 def _address(address: int) -> int:
@@ -200,7 +262,7 @@ def decode_identity(data: bytes) -> dict[str, int]:
     if not isinstance(identity, dict) or not set(identity) <= {"MESSAGE_ID1", "RTR_ID"}:
         raise ProtocolError("an identity with other names than MESSAGE_ID1 and RTR_ID")
     for value in identity.values():
-        if type(value) is not int or not -IDENTITY_LIMIT < value < IDENTITY_LIMIT:
+        if type(value) is not int or not -identity_limit <= value <= identity_limit:
             raise ProtocolError("an identity whose values are not integers")
     return identity
 
@@ -218,6 +280,14 @@ def decode_text(data: bytes) -> str:
 def source_message(name: str, source: bytes) -> bytes:
     encoded = name.encode()
     return SOURCE + NAME_LENGTH.pack(len(encoded)) + encoded + source
+
+
+def vector_message(vector: int, live: bool, read_ahead: bytes) -> bytes:
+    return VECTOR + bytes((vector, live)) + read_ahead
+
+
+def go_on_message(live: bool, read_ahead: bytes) -> bytes:
+    return GO_ON + bytes((live,)) + read_ahead
 
 
 def read_ahead_message(budget_ps: int, current: bool, addresses: tuple[int, ...], values: bytes, seen: bytes,
