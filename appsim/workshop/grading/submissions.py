@@ -400,8 +400,9 @@ def _submission(name: str, entries: list[_Entry], origin: str, budget: _Budget, 
         if found.whole is not None:
             problems[exercise] = found.whole
         elif refused:
-            problems[exercise] = Fault("missing", f"{EXERCISE_FILES[exercise]} (or {C_FILES[exercise]}) is missing "
-                                                  f"from this submission: nothing to grade for {exercise} ({refused})")
+            problems[exercise] = Fault("missing", f"{EXERCISE_FILES[exercise]} is missing from this submission (and "
+                                                  f"{C_FILES[exercise]}, its C twin): nothing to grade for {exercise} "
+                                                  f"({refused})")
     return Submission(name, files, problems, origin, note)
 
 

@@ -825,6 +825,91 @@ extern volatile near union {
 } T1CONbits;
 extern volatile near unsigned char TMR1L;       /* 0xFCE */
 extern volatile near unsigned char TMR1H;       /* 0xFCF */
+extern volatile near unsigned char RCON;        /* 0xFD0 */
+extern volatile near union {
+  struct {
+    unsigned BOR:1;
+    unsigned POR:1;
+    unsigned PD:1;
+    unsigned TO:1;
+    unsigned RI:1;
+    unsigned :2;
+    unsigned IPEN:1;
+  };
+  struct {
+    unsigned NOT_BOR:1;
+    unsigned NOT_POR:1;
+    unsigned NOT_PD:1;
+    unsigned NOT_TO:1;
+    unsigned NOT_RI:1;
+  };
+} RCONbits;
+extern volatile near unsigned char INTCON3;     /* 0xFF0 */
+extern volatile near union {
+  struct {
+    unsigned INT1IF:1;
+    unsigned INT2IF:1;
+    unsigned INT3IF:1;
+    unsigned INT1IE:1;
+    unsigned INT2IE:1;
+    unsigned INT3IE:1;
+    unsigned INT1IP:1;
+    unsigned INT2IP:1;
+  };
+  struct {
+    unsigned INT1F:1;
+    unsigned INT2F:1;
+    unsigned INT3F:1;
+    unsigned INT1E:1;
+    unsigned INT2E:1;
+    unsigned INT3E:1;
+    unsigned INT1P:1;
+    unsigned INT2P:1;
+  };
+} INTCON3bits;
+extern volatile near unsigned char INTCON2;     /* 0xFF1 */
+extern volatile near union {
+  struct {
+    unsigned RBIP:1;
+    unsigned INT3IP:1;
+    unsigned TMR0IP:1;
+    unsigned INTEDG3:1;
+    unsigned INTEDG2:1;
+    unsigned INTEDG1:1;
+    unsigned INTEDG0:1;
+    unsigned RBPU:1;
+  };
+  struct {
+    unsigned :1;
+    unsigned INT3P:1;
+    unsigned T0IP:1;
+    unsigned :4;
+    unsigned NOT_RBPU:1;
+  };
+} INTCON2bits;
+extern volatile near unsigned char INTCON;      /* 0xFF2 */
+extern volatile near union {
+  struct {
+    unsigned RBIF:1;
+    unsigned INT0IF:1;
+    unsigned TMR0IF:1;
+    unsigned RBIE:1;
+    unsigned INT0IE:1;
+    unsigned TMR0IE:1;
+    unsigned PEIE:1;
+    unsigned GIE:1;
+  };
+  struct {
+    unsigned :1;
+    unsigned INT0F:1;
+    unsigned T0IF:1;
+    unsigned :1;
+    unsigned INT0E:1;
+    unsigned T0IE:1;
+    unsigned GIEL:1;
+    unsigned GIEH:1;
+  };
+} INTCONbits;
 
 /* The instructions C18 offers as functions: one cycle each (ClrWdt: the watchdog timer is not simulated). */
 void Nop(void);
