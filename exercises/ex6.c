@@ -60,8 +60,8 @@ void main(void)
 {
     BOOL heard;
 
-    OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_1ANA,
-            ADC_CH0 & ADC_INT_OFF & ADC_VREFPLUS_VDD & ADC_VREFMINUS_VSS);
+    OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_0_TAD,
+            ADC_CH0 & ADC_INT_OFF & ADC_VREFPLUS_VDD & ADC_VREFMINUS_VSS, ADC_1ANA);
     GLCD_Initial();
     setcurGLCD(1, 1);
     putrsGLCD("EX6 ANSWER RTR");

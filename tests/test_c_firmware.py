@@ -46,7 +46,7 @@ def bytes_of(array: list[int]) -> bytes:
     return bytes(v & 0xFF for v in array).split(b"\0")[0]
 
 
-MAIN_LOOP = "\nvoid main(void) { work(); while (1) { Nop(); } }\n"
+MAIN_LOOP = "\nvoid main(void) { work(); while (1) { ClrWdt(); } }\n"  # not an empty loop: one the kit waits in
 
 
 # ====================================================================== the workshop in C
@@ -401,9 +401,23 @@ def test_sprintf_past_the_end_of_its_buffer_is_reported():
     ("void f(void) {}\nvoid main(void) {\n    void (*p)(void) = f;\n}\n", 3, "function pointers are not supported"),
     ("float volts;\nvoid main(void) {}\n", 1, "floating point"),
     ("union u { char a; int b; } x;\nvoid main(void) {}\n", 1, "unions are not supported"),
-    ("#pragma interrupt high_isr\nvoid high_isr(void) {}\nvoid main(void) {}\n", 1, "issue 25"),
-    ("#pragma interruptlow low_isr\nvoid low_isr(void) {}\nvoid main(void) {}\n", 1, "no interrupts yet"),
-    ("#pragma code high_vector=0x08\nvoid v(void) {}\n#pragma code\nvoid main(void) {}\n", 1, "interrupt vector"),
+    ("#pragma interrupt high_isr\nvoid high_isr(void) {}\nvoid main(void) {}\n", 1,
+     "nothing at the vector 0x08 jumps to high_isr"),
+    ("#pragma interruptlow low_isr\nvoid low_isr(void) {}\nvoid main(void) {}\n", 1,
+     "#pragma code low_vector=0x18, then void interrupt_at_low_vector(void) { _asm GOTO low_isr _endasm }"),
+    ("#pragma code high_vector=0x08\nvoid v(void) {}\n#pragma code\nvoid main(void) {}\n", 2,
+     "v() is at the interrupt vector 0x08"),
+    ("void f(void) {}\n#pragma code high_vector=0x08\nvoid v(void) { _asm GOTO f _endasm }\n#pragma code\n"
+     "void main(void) {}\n", 3, "goes to f, which no #pragma interrupt names"),
+    ("void low(void);\n#pragma code high_vector=0x08\nvoid v(void) { _asm GOTO low _endasm }\n#pragma code\n"
+     "#pragma interruptlow low\nvoid low(void) {}\nvoid main(void) {}\n", 3, "named by #pragma interruptlow"),
+    ("void main(void) {\n    _asm GOTO main _endasm\n}\n", 2, "belongs alone in a function at the vector"),
+    ("#pragma interrupt isr\nvoid isr(int n) {}\nvoid main(void) {}\n", 1, "void isr(void)"),
+    ("void isr(void) {}\n#pragma interrupt isr\nvoid main(void) {}\n", 2, "comes after isr's definition"),
+    ("#pragma interrupt nobody\nvoid main(void) {}\n", 1, "defines no function nobody"),
+    ("void main(void) {\n#pragma interrupt main\n}\n", 2, "belongs at the top level of the file"),
+    ("#pragma code high_vector=0x08\nvoid a(void) { _asm GOTO isr _endasm }\nvoid b(void) {}\n", 3,
+     "A #pragma code alone ends the vector's section"),
     ('#include "/etc/hostname"\nvoid main(void) {}\n', 1, "includes only its own headers"),
     ('#include "../secrets.h"\nvoid main(void) {}\n', 1, "includes only its own headers"),
     ("#include __FILE__\nvoid main(void) {}\n", 1, "includes only its own headers"),
@@ -520,11 +534,20 @@ def test_a_class_in_c_is_graded_in_the_sandbox_either_language_per_exercise(tmp_
 
 
 def test_a_c_firmware_that_loops_without_touching_a_register_is_stopped_at_its_c_line():
-    _, process = run_c("#include <p18f8680.h>\nint n;\nvoid main(void) {\n    n = 1;\n    while (1);\n}\n",
-                       name="stuck.c", seconds=1.0)
+    _, process = run_c("#include <p18f8680.h>\nint n;\nvoid main(void) {\n    n = 1;\n    while (1) { n++; }\n}\n",
+                       name="stuck.c", seconds=3.0)
     fault = board_fault(process)
     assert fault is not None and fault.kind == "stalled", fault
-    assert "at line 5 of stuck.c (`while (1);`)" in fault.message and "`while(1);`" in fault.message
+    assert "at line 5 of stuck.c (`while (1) { n++; }`)" in fault.message and "`while(1);`" in fault.message
+
+
+def test_a_c_empty_loop_no_interrupt_can_end_stops_at_once_naming_its_c_line():
+    _, process = run_c("#include <p18f8680.h>\nint n;\nvoid main(void) {\n    n = 1;\n    while (1);\n}\n",
+                       name="stuck.c", seconds=0.001)
+    fault = board_fault(process)
+    assert fault is not None and fault.kind == "stalled", fault
+    assert fault.message.startswith("main() waits in an empty loop at line 5 of stuck.c (`while (1);`), which only an "
+                                    "interrupt routine can end, and no interrupt can come: INTCONbits.GIE is 0"), fault
 
 
 def test_the_command_line_takes_c18s_minus_oi_as_c18s_command_line_does(tmp_path):

@@ -139,6 +139,8 @@ def test_the_wheel_holds_the_c_headers_starters_and_solutions_and_checks_c(insta
                              "from importlib import resources; from appsim.workshop.course import solution, starter; "
                              "headers = resources.files('appsim.firmware.c18') / 'include'; "
                              "print(sorted(p.name for p in headers.iterdir() if p.name.endswith('.h'))); "
+                             "twins = resources.files('appsim.workshop.solutions.interrupts'); "
+                             "assert {'ex1.c', 'ex3.c', 'ex6.c'} <= {p.name for p in twins.iterdir()}; "
                              "print(solution('ex1', 'c').read_text(), end='')"],
                             cwd=elsewhere, capture_output=True, text=True, check=True).stdout
     names, _, source = listed.partition("\n")

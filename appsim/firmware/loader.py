@@ -21,7 +21,7 @@ from types import ModuleType
 
 from appsim.chip.sfr import VECTOR_NAMES
 from appsim.errors import FirmwareError
-from appsim.firmware.interrupts import MARK, idle, routines
+from appsim.firmware.interrupts import MARK, idle, in_c18_words, routines
 from appsim.sim import TRACEBACK_FRAMES
 
 _loads = itertools.count()
@@ -64,7 +64,7 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
     linecache.cache[str(path)] = (len(source), None, source.decode("utf-8").splitlines(True), str(path))
     if defines:
         _apply_defines(tree, defines, path)
-    waits_for_interrupts(tree, path, source)
+    waits_for_interrupts(tree, path, source.decode("utf-8").splitlines())
     try:
         code = compile(tree, str(path), "exec")
     except SyntaxError as error:
@@ -99,14 +99,14 @@ _CONDITION_NODES = (ast.Name, ast.Constant, ast.UnaryOp, ast.BoolOp, ast.Compare
                     ast.unaryop, ast.boolop, ast.cmpop, ast.operator)
 
 
-def waits_for_interrupts(tree: ast.Module, path: Path, source: bytes) -> None:
+def waits_for_interrupts(tree: ast.Module, path: Path, lines: Sequence[str]) -> None:
     """Rewrite (in place) every provably empty waiting loop inside a function: `while COND:` whose body is only `pass`,
     `...` or `Nop()`, and whose condition reads names and constants with no call, attribute or subscript (no register
     read): `while True: pass`, `while not flag: pass`, `while count == seen: Nop()`. Only an interrupt routine can end
     such a loop, so on the chip it spins until one does; here each turn first calls `__appsim_idle__(LOOP, (NAMES),
     (CALLS))`, which waits until the next interrupt is taken (appsim.firmware.interrupts.idle: only when the names
-    hold plain values and the calls are the kit's Nop, so that nothing else can change the condition)."""
-    lines = source.decode("utf-8").splitlines()
+    hold plain values and the calls are the kit's Nop, so that nothing else can change the condition). `lines` are the
+    file's, which the loop's message quotes (a C file's: its C18 `while (!flag);` translates to exactly this shape)."""
     functions = [node for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))]
     loops = {id(node): node for function in functions for node in ast.walk(function) if isinstance(node, ast.While)}
     for loop in loops.values():
@@ -241,7 +241,8 @@ def crash_message(error: BaseException, filename: str | None) -> str:
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
     what = _in_c_words(error, filename) or _past_the_data(error, filename) or _as_python_words_it(error, report)
     who = _crashed_in(error, filename)
-    return f"{who} crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+    message = f"{who} crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+    return in_c18_words(message) if _is_c_file(filename) else message
 
 
 def _crashed_in(error: BaseException, filename: str | None) -> str:
@@ -275,10 +276,18 @@ def _as_python_words_it(error: BaseException, report: traceback.TracebackExcepti
 
 def _in_c_words(error: BaseException, filename: str | None) -> str | None:
     """For firmware translated from C, what went wrong as C would say it."""
-    if "appsim.firmware.c18" not in sys.modules:
+    if not _is_c_file(filename):
         return None
     from appsim.firmware import c18
-    return c18.describe(error) if c18.is_c_file(filename) else None
+    return c18.describe(error)
+
+
+def _is_c_file(filename: str | None) -> bool:
+    """Whether `filename`'s code was translated from C (only once the translator has been loaded can it be)."""
+    if "appsim.firmware.c18" not in sys.modules:
+        return False
+    from appsim.firmware import c18
+    return c18.is_c_file(filename)
 
 
 _SUBSCRIPT = re.compile(r"\b([A-Za-z_]\w*)\[\s*(-?\w+)\s*\]")      # RxData[3], RxData[i]

@@ -22,12 +22,14 @@ from typing import Any
 from pycparser import c_ast
 from pycparser.c_parser import ParseError
 
-from appsim.chip.sfr import current_mcu
+from appsim.chip.sfr import HIGH_VECTOR, LOW_VECTOR, current_mcu
 from appsim.errors import CCompileError, CRuntimeError
 from appsim.firmware.c18 import compiler, headers, preprocess, runtime
-from appsim.firmware.c18.compiler import LIB, MCU, RT, Sym, Translator
+from appsim.firmware.c18.compiler import GOTO, MCU, ROUTINE_MARKS, RT, Sym, Translator, library_name
 from appsim.firmware.c18.library import BINDINGS, Restart
 from appsim.firmware.c18.parser import C18Parser
+from appsim.firmware.interrupts import idle, interrupt, interruptlow, routines
+from appsim.firmware.loader import IDLE, waits_for_interrupts
 
 OPTIONS = {"-Oi": "integer promotions, as ISO C has them (C18's default has none)",
            "-k": "plain char is unsigned (C18's default: signed)"}
@@ -104,6 +106,7 @@ def load(path: str | Path, source: bytes, defines: Mapping[str, int] | None = No
     namespace.update(translated.namespace)
     namespace.update(translated.constants)
     exec(translated.code, namespace)
+    routines(module)                    # the translation checked them: two at one vector cannot be
     return module
 
 
@@ -200,13 +203,13 @@ def _translate(filename: str, source: bytes, defines: Mapping[str, int], options
     if done.text.count("\n") > MAX_LINES:
         raise CCompileError(f"the file has more than {MAX_LINES:,} lines of C (after the preprocessor): a firmware "
                             "has a few hundred", filename)
-    _refuse_what_cannot_parse(done.text, filename)
+    parsed_text = _refuse_what_cannot_parse(done.text, filename)
     symbols: dict[str, Sym] = {}
     for header in done.headers:
         symbols.update(header_symbols(header, options))
     typedefs = [s.name for s in symbols.values() if s.kind == "typedef"]
     try:
-        tree = C18Parser(typedefs).parse(done.text, filename)
+        tree = C18Parser(typedefs).parse(parsed_text, filename)
     except ParseError as error:
         raise _parse_error(error, filename, text) from None
     except RecursionError:
@@ -220,6 +223,7 @@ def _translate(filename: str, source: bytes, defines: Mapping[str, int], options
                             "does", filename)
     constants_ = _define_values(done.expanded, translator, filename)
     module, namespace = _module(translator, filename)
+    waits_for_interrupts(module, Path(filename), lines)
     try:
         try:
             code = compile(module, filename, "exec")
@@ -233,17 +237,27 @@ def _translate(filename: str, source: bytes, defines: Mapping[str, int], options
     return Translated(code, namespace, constants_, tuple(done.defines))
 
 
-def _refuse_what_cannot_parse(text: str, filename: str) -> None:
-    """Inline assembly, and nesting deeper than the parser should go: found in the preprocessed text, by line."""
+_ASM = re.compile(r'#line (\d+)[^\n]*\n|\n|"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|[(\[{]|[)\]}]|'
+                  r'\b_asm\s+goto\s+([A-Za-z_]\w*)\s+_endasm\b|\b_asm\b|\b__asm\b|\basm\b', re.IGNORECASE)
+
+
+def _refuse_what_cannot_parse(text: str, filename: str) -> str:
+    """The preprocessed text as the parser takes it: inline assembly refused, but for C18's interrupt vector,
+    `_asm GOTO high_isr _endasm`, which becomes a call the translator knows (on as many lines as it had); and nesting
+    deeper than the parser should go refused, by line."""
     line, depth = 1, 0
-    name = Path(filename).name
-    for match in re.finditer(r'#line (\d+)[^\n]*\n|\n|"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|[(\[{]|[)\]}]|'
-                             r'\b_asm\b|\b__asm\b|\basm\b', text):
+    pieces: list[str] = []
+    done = 0
+    for match in _ASM.finditer(text):
         token = match.group(0)
         if match.group(1):
             line = int(match.group(1))
         elif token == "\n":
             line += 1
+        elif match.group(2):
+            pieces += [text[done:match.start()], f"{GOTO}({match.group(2)});", "\n" * token.count("\n")]
+            done = match.end()
+            line += token.count("\n")
         elif token in "([{":
             depth += 1
             if depth > MAX_NESTING:
@@ -251,10 +265,12 @@ def _refuse_what_cannot_parse(text: str, filename: str) -> None:
                                     "firmware needs that; simplify the expression", filename, line)
         elif token in ")]}":
             depth -= 1
-        elif token in ("_asm", "__asm", "asm"):
+        elif token[0] not in "\"'":
             raise CCompileError(f"inline assembly ({token} ... _endasm) is not supported: the kit runs C, not PIC18 "
-                                "instructions. For a NOP call Nop(); for CLRWDT, ClrWdt()", filename, line)
-    del name
+                                "instructions. For a NOP call Nop(); for CLRWDT, ClrWdt(). The one assembly it takes "
+                                "is C18's interrupt vector, `_asm GOTO high_isr _endasm` (docs/interrupts.md)",
+                                filename, line)
+    return "".join(pieces) + text[done:]
 
 
 def _parse_error(error: ParseError, filename: str, text: str) -> CCompileError:
@@ -328,7 +344,8 @@ def _module(tr: Translator, filename: str) -> tuple[ast.Module, dict[str, Any]]:
     namespace: dict[str, Any] = {RT: runtime, "__current_mcu": current_mcu, "__Restart": Restart, MCU: None,
                                  "__c18__": True}
     for name, binding in BINDINGS.items():
-        namespace[LIB + name] = binding
+        namespace[library_name(name)] = binding
+    namespace.update({IDLE: idle, ROUTINE_MARKS[HIGH_VECTOR]: interrupt, ROUTINE_MARKS[LOW_VECTOR]: interruptlow})
     for name, value in tr.constants.items():
         if isinstance(value, compiler._RomString):
             namespace[name] = runtime.Ptr(value.data, 0, 0, len(value.data), value.name, True)

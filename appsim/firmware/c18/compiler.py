@@ -16,15 +16,21 @@ from typing import Any
 
 from pycparser import c_ast
 
-from appsim.chip.sfr import ADDRESSES, BITFIELDS
+from appsim.chip.sfr import ADDRESSES, BITFIELDS, HIGH_VECTOR, LOW_VECTOR
 from appsim.errors import CCompileError
 from appsim.firmware.c18 import ctypes18 as T
 from appsim.firmware.c18.ctypes18 import Array, CType, Function, Int, Member, Pointer, Struct, Void
 from appsim.firmware.c18.library import BINDINGS, RESULTS
 
 RT, MCU, LIB = "__rt", "__M", "__lib_"      # the runtime module, the board's MCU, the library functions
-INTERRUPTS_LATER = ("the kit's simulated PIC18 has no interrupts yet (they arrive with issue 25, \"The silicon, "
-                    "complete\"): poll the flag in main()'s loop instead, as the workshop's exercises do")
+# The library functions the translation calls by their own name: the loader knows the kit's Nop by its name (an empty
+# waiting loop's body, appsim.firmware.loader.waits_for_interrupts), so `while (!flag) Nop();` is `Nop()` there too.
+OWN_NAMES = frozenset({"Nop"})
+GOTO = "__c18_goto"                 # `_asm GOTO high_isr _endasm`, the one inline assembly the kit takes, as parsed
+# The decorators `#pragma interrupt NAME` and `#pragma interruptlow NAME` put on NAME (appsim.firmware.interrupts)
+ROUTINE_MARKS = {HIGH_VECTOR: "__c18_interrupt", LOW_VECTOR: "__c18_interruptlow"}
+PRAGMAS = {HIGH_VECTOR: "interrupt", LOW_VECTOR: "interruptlow"}
+VECTOR_SECTIONS = {HIGH_VECTOR: "high_vector", LOW_VECTOR: "low_vector"}
 MAX_STATEMENTS = 20_000             # statements in one file
 MAX_LOOP_NESTING = 18               # Python allows 20 nested blocks; the translation adds one for a switch
 
@@ -102,6 +108,10 @@ class Translator:
         self.main_seen = False
         self.called: set[str] = set()
         self.struct_nodes: dict[int, Struct] = {}
+        self.section: int | None = None                     # the interrupt vector `#pragma code NAME=0x08` places at
+        self.marked: dict[str, tuple[int, Any]] = {}        # `#pragma interrupt[low] NAME`: NAME -> (vector, pragma)
+        self.vectors: dict[int, tuple[str, Any]] = {}       # vector -> the routine there (a GOTO to it, or itself)
+        self.functions: dict[str, ast.FunctionDef] = {}     # the file's functions, by C name
 
     # ================================================================== errors and locations
     def refuse(self, node: Any, message: str) -> _Refused:
@@ -173,7 +183,9 @@ class Translator:
 
     def what(self, sym: Sym) -> str:
         return {"func": "a function", "lib": "a library function", "sfr": "a register", "bits": "a register's bits",
-                "enum": "an enumeration constant", "typedef": "a type name"}.get(sym.kind, sym.ctype.spelled())
+                "enum": "an enumeration constant", "typedef": "a type name",
+                "vector": "C18's interrupt vector (a GOTO the core jumps to; nothing calls it)"}.get(
+                    sym.kind, sym.ctype.spelled())
 
     def py_name(self, name: str) -> str:
         """The Python name of a C identifier: itself, unless Python or the translation uses it (a C name with two
@@ -375,25 +387,62 @@ class Translator:
             except RecursionError:
                 raise self.error_at(ext, "this is nested too deep for the kit's C: simplify the expression or "
                                          "split the function") from None
+        try:
+            self.interrupt_routines()
+        except _Refused as refused:
+            raise self.error_at(refused.node, str(refused)) from None
         for scope in self.scopes[:1]:
             for sym in scope.values():
                 if sym.kind == "func" and not sym.defined and sym.name in self.called:
                     raise CCompileError(f"{sym.name}() is declared but never defined: the linker would stop "
                                         "here (write its body, or call a library function)", self.filename)
 
-    def pragma(self, node: c_ast.Pragma) -> None:
+    def pragma(self, node: c_ast.Pragma, in_function: bool = False) -> None:
         text = (node.string or "").strip()
         words = text.replace("=", " = ").split()
         head = words[0] if words else ""
-        if head in ("interrupt", "interruptlow"):
-            # Issue 25: map `#pragma interrupt NAME` onto appsim.firmware's `interrupt` decorator here (mark NAME,
-            # and decorate its FunctionDef in function_definition), `interruptlow` onto `interruptlow`.
-            raise self.refuse(node, f"#pragma {head}: {INTERRUPTS_LATER}")
-        if head == "code" and "=" in words:
-            raise self.refuse(node, f"#pragma {text}: an interrupt vector; {INTERRUPTS_LATER}")
-        if head in ("config", "code", "udata", "idata", "romdata", "varlocate", "tmpdata", "once"):
+        if head in PRAGMAS.values() or (head == "code" and "=" in words):
+            if in_function:
+                raise self.refuse(node, f"#pragma {head} belongs at the top level of the file, outside any function")
+            if head == "code":
+                self.code_section(node, words)
+            else:
+                self.interrupt_pragma(node, head, words[1:])
+            return
+        if head == "code":
+            self.section = None         # `#pragma code` alone: back to the default section
+            return
+        if head in ("config", "udata", "idata", "romdata", "varlocate", "tmpdata", "once"):
             return                      # configuration bits and sections: no effect on the simulated board
-        raise self.refuse(node, f"#pragma {head} is not one C18 knows (config, code, romdata, udata, idata)")
+        raise self.refuse(node, f"#pragma {head} is not one C18 knows (config, code, romdata, udata, idata, interrupt, "
+                                "interruptlow)")
+
+    def code_section(self, node: c_ast.Pragma, words: list[str]) -> None:
+        """`#pragma code NAME=ADDRESS`: the code after it goes at ADDRESS. At 0x08 or 0x18, an interrupt vector."""
+        at = words.index("=")
+        try:
+            address = int(" ".join(words[at + 1:at + 2]).rstrip("hH"), 0)
+        except ValueError:
+            raise self.refuse(node, f"#pragma {node.string.strip()}: the address after = is a number, such as "
+                                    "high_vector=0x08") from None
+        self.section = address if address in PRAGMAS else None     # elsewhere: placing code changes nothing here
+
+    def interrupt_pragma(self, node: c_ast.Pragma, head: str, words: list[str]) -> None:
+        """`#pragma interrupt NAME [section] [save=...] [nosave=...]` (or interruptlow): NAME is a routine. What C18
+        saves beyond its own context does not matter to the kit: the routine runs in the firmware's own Python."""
+        vector = HIGH_VECTOR if head == "interrupt" else LOW_VECTOR
+        if not words or not words[0].isidentifier():
+            raise self.refuse(node, f"#pragma {head} names the routine: #pragma {head} "
+                                    f"{'high_isr' if vector == HIGH_VECTOR else 'low_isr'}")
+        name = words[0]
+        before = self.marked.get(name)
+        if before is not None and before[0] != vector:
+            raise self.refuse(node, f"{name} is named by both #pragma interrupt and #pragma interruptlow: a routine "
+                                    "has one priority (one vector, 0x08 or 0x18)")
+        if name in self.functions and before is None:
+            raise self.refuse(node, f"#pragma {head} {name} comes after {name}'s definition: C18 reads the pragma "
+                                    f"first, so write it above void {name}(void)")
+        self.marked[name] = (vector, node)
 
     def typedef(self, node: c_ast.Typedef) -> None:
         ctype = self.type_of(node.type)
@@ -520,6 +569,8 @@ class Translator:
         name = decl.name
         if node.param_decls:
             raise self.refuse(node, "old-style (K&R) parameter declarations: give each parameter its type")
+        if self.section is not None and self.vector_stub(node, ftype):
+            return
         if name == "main":
             self.main_seen = True
             if ftype.params:
@@ -559,7 +610,72 @@ class Translator:
         if not body:
             body = [ast.Pass()]
         fn = ast.FunctionDef(py, ast.arguments([], args, None, [], [], None, []), body, [], None)
+        self.functions[name] = fn
         self.module.append(self.at(decl, fn))
+
+    # ================================================================== interrupts
+    def vector_stub(self, node: c_ast.FuncDef, ftype: Function) -> bool:
+        """A function in a vector's section (`#pragma code high_vector=0x08`): C18's stub `_asm GOTO high_isr _endasm`
+        (True: nothing to translate), or the routine itself (False: translated as any function)."""
+        vector, name = self.section, node.decl.name
+        assert vector is not None
+        if vector in self.vectors:
+            raise self.refuse(node, f"a second function at the interrupt vector 0x{vector:02X} (after "
+                                    f"{self.vectors[vector][0]}): the vector has room for one GOTO. A #pragma code "
+                                    "alone ends the vector's section")
+        items = node.body.block_items or []
+        call = items[0] if len(items) == 1 else None
+        if isinstance(call, c_ast.FuncCall) and isinstance(call.name, c_ast.ID) and call.name.name == GOTO:
+            target = call.args.exprs[0] if call.args is not None and len(call.args.exprs) == 1 else None
+            assert isinstance(target, c_ast.ID)
+            self.vectors[vector] = (target.name, call)
+            self.declare(Sym(name, "vector", ftype, defined=True), node.decl)
+            return True
+        if name in self.marked:
+            self.vectors[vector] = (name, node)
+            return False
+        raise self.refuse(node, f"{name}() is at the interrupt vector 0x{vector:02X} (#pragma code "
+                                f"{VECTOR_SECTIONS[vector]}=0x{vector:02X}): what lies there is C18's GOTO to the "
+                                f"routine, `void {name}(void) {{ _asm GOTO {self.vector_example(vector)} _endasm }}`, "
+                                f"or the routine itself, named by #pragma {PRAGMAS[vector]}")
+
+    def vector_example(self, vector: int) -> str:
+        return next((n for n, (v, _) in self.marked.items() if v == vector),
+                    "high_isr" if vector == HIGH_VECTOR else "low_isr")
+
+    def interrupt_routines(self) -> None:
+        """Each vector's routine checked (named by its pragma, `void NAME(void)`, of the vector's priority), and marked
+        with the decorator the Python firmware would give it; a pragma's routine that no vector reaches is refused,
+        since on the chip it would never run."""
+        for vector, (name, node) in sorted(self.vectors.items()):
+            marked = self.marked.get(name)
+            if marked is None:
+                raise self.refuse(node, f"the interrupt vector 0x{vector:02X} goes to {name}, which no "
+                                        f"#pragma {PRAGMAS[vector]} names: C18 would build it as an ordinary function, "
+                                        "which saves nothing of what it interrupts and returns without RETFIE (GIE "
+                                        f"stays cleared). Write #pragma {PRAGMAS[vector]} {name} above its definition")
+            if marked[0] != vector:
+                priority = "high" if vector == HIGH_VECTOR else "low"
+                raise self.refuse(node, f"the interrupt vector 0x{vector:02X} goes to {name}, named by "
+                                        f"#pragma {PRAGMAS[marked[0]]}: the {priority}-priority vector's routine is "
+                                        f"named by #pragma {PRAGMAS[vector]}")
+        for name, (vector, node) in self.marked.items():
+            sym = self.scopes[0].get(name)
+            function = self.functions.get(name)
+            if sym is None or function is None:
+                raise self.refuse(node, f"#pragma {PRAGMAS[vector]} {name}: this file defines no function {name}")
+            assert isinstance(sym.ctype, Function)
+            if sym.ctype.params or not isinstance(sym.ctype.result, Void):
+                raise self.refuse(node, f"{name} is an interrupt routine, which the core calls with nothing and which "
+                                        f"returns nothing: void {name}(void)")
+            if self.vectors.get(vector, ("",))[0] != name:
+                stub = f"interrupt_at_{'high' if vector == HIGH_VECTOR else 'low'}_vector"
+                raise self.refuse(node, f"#pragma {PRAGMAS[vector]} {name}: nothing at the vector 0x{vector:02X} "
+                                        f"jumps to {name} (C18 places the routine wherever the linker likes, and the "
+                                        f"core jumps to 0x{vector:02X}), so it would never run. Put C18's vector "
+                                        f"there: #pragma code {VECTOR_SECTIONS[vector]}=0x{vector:02X}, then "
+                                        f"void {stub}(void) {{ _asm GOTO {name} _endasm }}, then #pragma code")
+            function.decorator_list = [ast.Name(ROUTINE_MARKS[vector], ast.Load())]
 
     # ================================================================== statements
     def block(self, items: Sequence[Any], new_scope: bool = True) -> list[ast.stmt]:
@@ -654,7 +770,7 @@ class Translator:
             raise self.refuse(node, "goto and labels are not supported by the kit's C: use a loop with break or "
                                     "continue, or a flag")
         if isinstance(node, c_ast.Pragma):
-            self.pragma(node)
+            self.pragma(node, in_function=True)
             return []
         if isinstance(node, c_ast.FuncDef):
             raise self.refuse(node, "a function defined inside a function: C has none")
@@ -1128,6 +1244,10 @@ class Translator:
         if not isinstance(node.name, c_ast.ID):
             raise self.refuse(node, "function pointers are not supported by the kit's C: call a function by name")
         name = node.name.name
+        if name == GOTO:
+            raise self.refuse(node, "inline assembly (_asm GOTO ... _endasm) is C18's interrupt vector, and belongs "
+                                    "alone in a function at the vector: #pragma code high_vector=0x08 (or "
+                                    "low_vector=0x18), the function, then #pragma code. Elsewhere, call the function")
         sym = self.lookup(name)
         if sym is None:
             hint = _HINTS.get(name, ": declare it (a prototype) above its first call, or include its header")
@@ -1140,7 +1260,8 @@ class Translator:
         if len(given) < len(ftype.params) or (len(given) > len(ftype.params) and not ftype.variadic):
             plural = "s" if len(ftype.params) != 1 else ""
             raise self.refuse(node, f"{name}() takes {len(ftype.params)} argument{plural}"
-                                    f"{' or more' if ftype.variadic else ''}; here it has {len(given)}")
+                                    f"{' or more' if ftype.variadic else ''}; here it has {len(given)}"
+                                    + _ARITY_HINTS.get((name, len(given)), ""))
         args: list[ast.expr] = []
         for k, (arg, ptype) in enumerate(zip(given, ftype.params, strict=False)):
             e = self.rvalue(arg)
@@ -1816,6 +1937,12 @@ _FOLD = {"+": lambda a, b: a + b, "-": lambda a, b: a - b, "*": lambda a, b: a *
 _PY_RESERVED = {"False", "None", "True", "and", "as", "assert", "async", "await", "class", "def", "del", "elif",
                 "except", "finally", "from", "global", "import", "in", "is", "lambda", "nonlocal", "not", "or",
                 "pass", "raise", "try", "with", "yield", "main", "print", "len", "range", "__rt", "__M"}
+_ARITY_HINTS = {
+    ("OpenADC", 2): (": the two-argument OpenADC(config, config2) is C18's for parts without an acquisition time; for "
+                     "the PIC18F8680 it is OpenADC(config, config2, portconfig), the ADC_nANA port configuration "
+                     "third and an ADC_n_TAD in config: OpenADC(ADC_FOSC_64 & ADC_RIGHT_JUST & ADC_0_TAD, ADC_CH0 & "
+                     "ADC_INT_OFF & ADC_VREFPLUS_VDD & ADC_VREFMINUS_VSS, ADC_1ANA)"),
+}
 _HINTS = {
     "RXB0CONbits": ": #include <p18f8680.h> declares the registers",
     "CANInitialize": ": #include \"CAN18XX8.h\"", "CANIsRxReady": ": #include \"CAN18XX8.h\"",
@@ -1847,7 +1974,7 @@ def header_symbols(tree: c_ast.FileAST, filename: str, options: Sequence[str]) -
                 if isinstance(ctype, Function):
                     if ext.name not in BINDINGS:
                         raise RuntimeError(f"{filename} declares {ext.name}, which the kit does not provide")
-                    tr.declare(Sym(ext.name, "lib", ctype, py=LIB + ext.name), ext)
+                    tr.declare(Sym(ext.name, "lib", ctype, py=library_name(ext.name)), ext)
                 elif ext.name in ADDRESSES:
                     tr.declare(Sym(ext.name, "sfr", ctype, value=ADDRESSES[ext.name]), ext)
                 else:
@@ -1855,6 +1982,11 @@ def header_symbols(tree: c_ast.FileAST, filename: str, options: Sequence[str]) -
         except _Refused as refused:
             raise RuntimeError(f"{filename}: {refused}") from None
     return tr.scopes[0]
+
+
+def library_name(name: str) -> str:
+    """The Python name the translation calls library function `name` by."""
+    return name if name in OWN_NAMES else LIB + name
 
 
 def device_symbols() -> dict[str, Sym]:
@@ -1866,5 +1998,5 @@ def device_symbols() -> dict[str, Sym]:
         if name in BITFIELDS:
             symbols[f"{name}bits"] = Sym(f"{name}bits", "bits", T.UCHAR, value=address)
     for name in ("Nop", "ClrWdt", "Reset"):
-        symbols[name] = Sym(name, "lib", Function(result=T.VOID), py=LIB + name)
+        symbols[name] = Sym(name, "lib", Function(result=T.VOID), py=library_name(name))
     return symbols

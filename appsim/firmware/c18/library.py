@@ -6,7 +6,9 @@ like Python's own string work, cost none.
 """
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
+from types import FrameType
 from typing import Any
 
 from appsim import firmware
@@ -15,6 +17,7 @@ from appsim.errors import CRuntimeError
 from appsim.firmware import adc, an738, glcd, timers, usart
 from appsim.firmware.c18 import runtime
 from appsim.firmware.c18.runtime import Ptr, bytes_at, put_string, string_at
+from appsim.firmware.interrupts import MARK
 
 
 class Restart(BaseException):
@@ -71,8 +74,28 @@ def ClrWdt() -> None:
 
 
 def Reset() -> None:
+    """C18's Reset(): the C program starts again from its startup code (globals initialised, then main()). The chip's
+    registers are not reset (the kit's PIC18F8680 has no reset of them all, which the RESET instruction does), and in
+    an interrupt routine it is refused: there the core's interrupt would stay in service, as it never is on the chip."""
+    routine = _running_routine()
+    if routine is not None:
+        raise CRuntimeError(f"Reset() inside the interrupt routine {routine}(): on the chip the RESET instruction "
+                            "resets the core and every register, and the kit restarts only the C program, so the "
+                            "interrupt being served would stay in service. Set a flag there and call Reset() from "
+                            "main()")
     current_mcu().spend_cycles(1)
     raise Restart
+
+
+def _running_routine() -> str | None:
+    """The name of the interrupt routine (a function its pragma marked) the current call comes from, if any."""
+    frame: FrameType | None = sys._getframe(1)
+    while frame is not None:
+        function = frame.f_globals.get(frame.f_code.co_name)
+        if getattr(function, "__code__", None) is frame.f_code and getattr(function, MARK, None) is not None:
+            return frame.f_code.co_name
+        frame = frame.f_back
+    return None
 
 
 # ------------------------------------------------------------------ string.h, stdlib.h (no cycles: computation)

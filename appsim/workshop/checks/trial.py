@@ -20,6 +20,7 @@ from appsim.chip.ecan.controller import ECAN
 from appsim.chip.mcu import PIC18F8680
 from appsim.errors import AppsimError, FirmwareError
 from appsim.firmware.identity import identity_of, shown
+from appsim.firmware.interrupts import in_c18_words
 from appsim.firmware.interrupts import routines as interrupt_routines
 from appsim.firmware.loader import is_c, load_firmware, load_source, read_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
@@ -59,6 +60,10 @@ class Firmware:
     def says(self, python: str, c: str) -> str:
         """A piece of code as the firmware's own language writes it."""
         return c if self.language == "c" else python
+
+    def worded(self, fault: Fault) -> Fault:
+        """A fault of this firmware's run in its own language's words (C's `#pragma interrupt` for `@interrupt`)."""
+        return Fault(fault.kind, in_c18_words(fault.message)) if self.language == "c" else fault
 
 
 class Loadable(Protocol):
@@ -270,7 +275,7 @@ class Trial:
         process = self.board.mcu.process
         assert process is not None, "the student's firmware was started in Trial.classroom"
         if process.failure is not None:
-            raise Fatal(fault_of(process.failure, self.firmware.filename))
+            raise Fatal(self.firmware.worded(fault_of(process.failure, self.firmware.filename)))
         if process.finished:
             raise Fatal(Fault("returned", f"main() returned (by {ms(self.now)}): firmware has nowhere to return to, "
                                           "so main() must loop forever (`while True:` around the work, as "

@@ -12,6 +12,14 @@
 #define ADC_FOSC_32          0b10101111
 #define ADC_FOSC_64          0b11101111
 #define ADC_FOSC_RC          0b11111111
+#define ADC_0_TAD            0b11110001   /* acquisition time, ADCON2.ACQT: 0 TAD (manual acquisition) */
+#define ADC_2_TAD            0b11110011
+#define ADC_4_TAD            0b11110101
+#define ADC_6_TAD            0b11110111
+#define ADC_8_TAD            0b11111001
+#define ADC_12_TAD           0b11111011
+#define ADC_16_TAD           0b11111101
+#define ADC_20_TAD           0b11111111
 #define ADC_RIGHT_JUST       0b11111111
 #define ADC_LEFT_JUST        0b01111111
 #define ADC_INT_ON           0b11111111
@@ -53,7 +61,9 @@
 #define ADC_CH14             0b11110111
 #define ADC_CH15             0b11111111
 
-void OpenADC(unsigned char config, unsigned char config2);     /* configure and switch on (ADCON0..2) */
+/* Configure and switch on (ADCON0..2), as C18's adc.h has it for the PIC18F8680 (a part with ACQT): config is
+ * ADC_FOSC_* & ADC_*_JUST & ADC_n_TAD, config2 ADC_CH* & ADC_INT_* & ADC_VREF*, portconfig ADC_*ANA. */
+void OpenADC(unsigned char config, unsigned char config2, unsigned char portconfig);
 void SetChanADC(unsigned char channel);                          /* ADC_CH0 .. ADC_CH15 */
 void ConvertADC(void);                                           /* ADCON0bits.GO = 1 */
 char BusyADC(void);                                              /* 1 while a conversion runs */
