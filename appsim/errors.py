@@ -74,7 +74,8 @@ class CCompileError(FirmwareError):
     """A C firmware file the kit's C18 will not translate: at its line and column, what is wrong and what to do."""
 
     def __init__(self, message: str, filename: str = "", line: int = 0, column: int = 0) -> None:
-        where = ":".join(str(part) for part in (filename, line, column) if part)
+        # the file's name, as the loader names a Python file: the same in `appsim check` and in the grader's sandbox
+        where = ":".join(str(part) for part in (filename.replace("\\", "/").rsplit("/", 1)[-1], line, column) if part)
         super().__init__(f"{where}: {message}" if where else message)
         self.filename, self.line, self.column, self.reason = filename, line, column, message
 

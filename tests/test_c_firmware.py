@@ -564,3 +564,77 @@ def test_the_command_line_takes_c18s_minus_oi_as_c18s_command_line_does(tmp_path
     wrong = subprocess.run([sys.executable, "-m", "appsim", "check", "ex3", str(firmware), "--c-option=-O2"],
                            capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert wrong.returncode == 2 and "not a C18 option the kit knows" in wrong.stderr
+
+
+# ====================================================================== the kit headers' state, handed to a sandbox
+
+_TRANSLATE_ALL = """
+import hashlib, marshal, sys
+from pathlib import Path
+from appsim.firmware import c18
+if sys.argv[1] == "adopt":
+    c18.adopt(sys.stdin.buffer.read())
+for path in sorted(p for folder in sys.argv[2:] for p in Path(folder).rglob("*.c")):
+    translated = c18.translate(path.name, path.read_bytes(), {}, ())
+    print(path.name, hashlib.sha256(marshal.dumps(translated.code)).hexdigest(), sorted(translated.constants.items()))
+"""
+
+
+def test_the_headers_state_the_grader_hands_over_translates_every_file_as_headers_parsed_here():
+    import subprocess
+    import sys
+
+    state = c18_package.header_state()
+    folders = [str(SOLUTIONS), str(STARTERS)]
+    parsed = subprocess.run([sys.executable, "-c", _TRANSLATE_ALL, "parse", *folders], capture_output=True,
+                            check=True).stdout
+    adopted = subprocess.run([sys.executable, "-c", _TRANSLATE_ALL, "adopt", *folders], input=state,
+                             capture_output=True, check=True).stdout
+    assert parsed.count(b"\n") == 17 and adopted == parsed, "solutions, interrupts, starters"
+    with pytest.raises(ValueError):
+        c18_package.adopt(__import__("pickle").dumps(("not", "the", "kit's")))
+
+
+
+@pytest.mark.parametrize("isolated", [False, True])
+def test_a_sandbox_booted_with_the_headers_state_loads_c_at_boot_and_grades_it(isolated):
+    import shutil
+
+    from appsim.workshop.sandbox.children import Limits, Sandbox
+    from appsim.workshop.sandbox.host import SandboxedFirmware
+    from appsim.workshop.sandbox.isolation import isolation
+
+    if isolated and not shutil.which("bwrap"):
+        pytest.skip("needs bubblewrap")
+    with Sandbox(isolation() if isolated else None, Limits(time_s=20)) as sandbox:
+        sandbox.expect_c(c18_package.header_state())
+        for exercise in ("ex1", "ex6"):
+            firmware = SandboxedFirmware(sandbox, C_FILES[exercise], (SOLUTIONS / C_FILES[exercise]).read_bytes(),
+                                         sandbox.limits, owner="alice")
+            try:
+                verdict = check(exercise, firmware, seed=5)
+            finally:
+                firmware.close()
+            assert verdict.score == verdict.max_score, str(verdict)
+
+
+def test_the_grader_gives_a_submissions_exercises_to_one_worker_and_so_one_sandbox():
+    import collections
+    from types import SimpleNamespace
+
+    from appsim.workshop.grading.grade import ORDER, _next_for, _Task
+
+    alice, bob, carol = (SimpleNamespace(name=n) for n in ("alice", "bob", "carol"))
+    waiting = collections.deque(_Task(n, s, e) for n, (s, e) in
+                                enumerate((s, e) for s in (alice, bob, carol) for e in ORDER))
+    one, two = SimpleNamespace(submission=None), SimpleNamespace(submission=None)
+    taken: dict[str, list[str]] = {"one": [], "two": []}
+    while waiting:          # the two workers take turns: each keeps to its submission while it has tasks left
+        for name, worker, other in (("one", one, two), ("two", two, one)):
+            if waiting:
+                task = _next_for(worker, waiting, [other.submission])
+                worker.submission = task.submission
+                taken[name].append(task.submission.name)
+    assert taken["one"][:8] == ["alice"] * 7 + ["carol"] and taken["two"][:7] == ["bob"] * 7
+    assert taken["two"][7:] == ["carol"] * 3 and taken["one"][8:] == ["carol"] * 3, \
+        "the last submission's tasks go to whichever worker is free, so that both end together"

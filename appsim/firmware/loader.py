@@ -15,7 +15,7 @@ import linecache
 import re
 import sys
 import traceback
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -107,20 +107,37 @@ def waits_for_interrupts(tree: ast.Module, path: Path, lines: Sequence[str]) -> 
     (CALLS))`, which waits until the next interrupt is taken (appsim.firmware.interrupts.idle: only when the names
     hold plain values and the calls are the kit's Nop, so that nothing else can change the condition). `lines` are the
     file's, which the loop's message quotes (a C file's: its C18 `while (!flag);` translates to exactly this shape)."""
-    functions = [node for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))]
-    loops = {id(node): node for function in functions for node in ast.walk(function) if isinstance(node, ast.While)}
-    for loop in loops.values():
+    for loop in _loops_in_functions(tree.body, False):
         if not _empty(loop) or not all(isinstance(node, _CONDITION_NODES) for node in ast.walk(loop.test)):
             continue
         names = list(dict.fromkeys(node.id for node in ast.walk(loop.test) if isinstance(node, ast.Name)))
         calls = ["Nop"] if any(isinstance(statement, ast.Expr) and isinstance(statement.value, ast.Call)
                                for statement in loop.body) else []
+        quoted = lines[loop.lineno - 1] if 0 < loop.lineno <= len(lines) else ""
         wait = ast.Expr(ast.Call(ast.Name(IDLE, ast.Load()), [
-            ast.Constant(f"line {loop.lineno} of {_shown(path.name)} (`{_shown(lines[loop.lineno - 1])}`)"),
+            ast.Constant(f"line {loop.lineno} of {_shown(path.name)} (`{_shown(quoted)}`)"),
             ast.Tuple([ast.Name(name, ast.Load()) for name in names], ast.Load()),
             ast.Tuple([ast.Name(name, ast.Load()) for name in calls], ast.Load())], []))
-        loop.body.insert(0, ast.copy_location(wait, loop.body[0]))
-    ast.fix_missing_locations(tree)
+        first = loop.body[0]
+        for node in ast.walk(wait):     # the new nodes only, at the place of the loop's first statement
+            if isinstance(node, (ast.expr, ast.stmt)):
+                ast.copy_location(node, first)
+        loop.body.insert(0, wait)
+
+
+def _loops_in_functions(statements: list[ast.stmt], in_function: bool) -> Iterator[ast.While]:
+    """The `while` loops among `statements` and the statements inside them that lie in a function (a loop can only be
+    a statement, so expressions are never looked into)."""
+    for statement in statements:
+        inside = in_function or isinstance(statement, (ast.FunctionDef, ast.AsyncFunctionDef))
+        if isinstance(statement, ast.While) and in_function:
+            yield statement
+        for name in ("body", "orelse", "finalbody"):
+            block = getattr(statement, name, None)
+            if isinstance(block, list):
+                yield from _loops_in_functions(block, inside)
+        for part in (*getattr(statement, "handlers", ()), *getattr(statement, "cases", ())):
+            yield from _loops_in_functions(part.body, inside)
 
 
 def _shown(text: str, most: int = LOOP_TEXT) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import ast
 import contextlib
 import hashlib
+import pickle
 import re
 import signal
 import threading
@@ -314,21 +315,51 @@ def header_symbols(header: str, options: tuple[str, ...], *, parsed: bool = Fals
     return found
 
 
-def warm() -> None:
-    """Preprocess and parse every kit header now (once per process): the grader's zygote does before it forks."""
-    for header in headers.HEADERS:
-        header_symbols(header, ())
+def warm(options: Sequence[str] = ()) -> None:
+    """Preprocess and parse every kit header now (once per process), with C18's `options` too."""
+    for option_set in {(), check_options(options)}:
+        for header in headers.HEADERS:
+            header_symbols(header, option_set)
+            preprocess.kit_header(header, declarations=False)
+
+
+STATE_FORMAT = 1
+
+
+def header_state(options: Sequence[str] = ()) -> bytes:
+    """The kit's headers preprocessed and parsed (`warm`), as bytes for another process of this same kit: the grader
+    makes them once and hands them to every sandbox, which `adopt`s them instead of parsing the headers itself. They are
+    made from the kit's own headers, never from a firmware, and only ever go into a sandbox, never out of one."""
+    warm(options)
+    return pickle.dumps((STATE_FORMAT, _symbols, preprocess.header_macros()), protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def adopt(state: bytes) -> None:
+    """Know the kit's headers as `header_state` made them in the grader (ValueError if they are not of this format)."""
+    found = pickle.loads(state)
+    if not (isinstance(found, tuple) and len(found) == 3 and found[0] == STATE_FORMAT):
+        raise ValueError("the kit headers' state is not one this kit made")
+    _, symbols, macros = found
+    for key, value in symbols.items():
+        _symbols.setdefault(key, value)
+    preprocess.adopt_headers(macros)
+
+
+_PLAIN_NUMBER = re.compile(r"0[xX][0-9a-fA-F]+|[1-9][0-9]*|0")
 
 
 def _define_values(expanded: Mapping[str, str], translator: Translator, filename: str) -> dict[str, int]:
     """The file's object-like #defines whose replacement is an integer constant, with their values."""
     values: dict[str, int] = {}
+    typedefs = [s.name for s in translator.scopes[0].values() if s.kind == "typedef"]
     for name, text in expanded.items():
         if not text:
             continue
+        if _PLAIN_NUMBER.fullmatch(text):       # 0x100, 125: the value C gives it, without a parse
+            values[name] = int(text, 0)
+            continue
         try:
-            tree = C18Parser([s.name for s in translator.scopes[0].values() if s.kind == "typedef"]).parse(
-                f"int __value = ({text});", filename)
+            tree = C18Parser(typedefs).parse(f"int __value = ({text});", filename)
             decl = tree.ext[0]
             assert isinstance(decl, c_ast.Decl)
             e = translator.rvalue(decl.init)

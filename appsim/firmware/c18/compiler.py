@@ -36,6 +36,7 @@ MAX_LOOP_NESTING = 18               # Python allows 20 nested blocks; the transl
 
 
 _PLACED = (ast.expr, ast.stmt, ast.excepthandler, ast.arg, ast.keyword)
+_LEAVES = (ast.expr_context, ast.operator, ast.unaryop, ast.boolop, ast.cmpop)   # nodes with no children, no place
 
 
 class _Refused(Exception):
@@ -108,6 +109,7 @@ class Translator:
         self.main_seen = False
         self.called: set[str] = set()
         self.struct_nodes: dict[int, Struct] = {}
+        self.line_ends: dict[int, int] = {}                 # line -> its length in UTF-8 bytes (a node's end)
         self.section: int | None = None                     # the interrupt vector `#pragma code NAME=0x08` places at
         self.marked: dict[str, tuple[int, Any]] = {}        # `#pragma interrupt[low] NAME`: NAME -> (vector, pragma)
         self.vectors: dict[int, tuple[str, Any]] = {}       # vector -> the routine there (a GOTO to it, or itself)
@@ -132,8 +134,11 @@ class Translator:
         column = max((getattr(coord, "column", None) or 1) - 1, 0)
         if coord is not None and coord.file and coord.file != self.filename:
             line, column = 1, 0
-        text = self.lines[line - 1] if 0 < line <= len(self.lines) else ""
-        end = max(len(text.encode("utf-8")), column + 1)
+        end = self.line_ends.get(line)
+        if end is None:
+            text = self.lines[line - 1] if 0 < line <= len(self.lines) else ""
+            end = self.line_ends[line] = len(text.encode("utf-8"))
+        end = max(end, column + 1)
         stack = list(py) if isinstance(py, list) else [py]
         while stack:                    # a node placed before was placed with everything below it: not again
             sub = stack.pop()
@@ -142,7 +147,12 @@ class Translator:
                     continue
                 sub.lineno, sub.col_offset = line, column
                 sub.end_lineno, sub.end_col_offset = line, end
-            stack.extend(ast.iter_child_nodes(sub))
+            for name in sub._fields:    # its children (ast.iter_child_nodes, without the leaves: Load, Add ...)
+                value = getattr(sub, name, None)
+                if isinstance(value, list):
+                    stack.extend(item for item in value if isinstance(item, ast.AST) and not isinstance(item, _LEAVES))
+                elif isinstance(value, ast.AST) and not isinstance(value, _LEAVES):
+                    stack.append(value)
         return py
 
     def tick(self, node: Any) -> None:

@@ -5,11 +5,12 @@
 from __future__ import annotations
 
 import sys
-from importlib import resources
 from pathlib import Path
 
 from appsim.chip.sfr import ADDRESSES, BITFIELDS
 
+INCLUDE = Path(__file__).resolve().parent / "include"   # package data, installed as files (importlib.resources
+#                                                         costs a sandbox 3 ms to import, and the kit is never zipped)
 DEVICE_HEADER = "p18f8680.h"
 HEADERS = ("p18f8680.h", "CAN18XX8.h", "adc.h", "timers.h", "usart.h", "delays.h", "stdio.h", "string.h",
            "stdlib.h", "APP023_GLCD.h")
@@ -19,7 +20,7 @@ def header_text(name: str) -> str:
     """The text of one of the kit's headers, by its name as #include gives it (any case: C18 runs on Windows)."""
     for known in HEADERS:
         if known.lower() == name.lower():
-            return (resources.files(__package__) / "include" / known).read_text(encoding="utf-8")
+            return (INCLUDE / known).read_text(encoding="utf-8")
     raise KeyError(name)
 
 
@@ -83,7 +84,7 @@ def device_header() -> str:
 
 
 def _write() -> None:
-    path = Path(__file__).with_name("include") / "p18f8680.h"
+    path = INCLUDE / DEVICE_HEADER
     path.write_text(device_header(), encoding="utf-8")
     print(f"wrote {path}", file=sys.stderr)
 

@@ -6,6 +6,7 @@ translator knows its declarations already). `-D` names replace the file's own #d
 """
 from __future__ import annotations
 
+import importlib
 import io
 import time
 from collections.abc import Mapping
@@ -200,6 +201,36 @@ def kit_header(name: str, declarations: bool = True) -> _Header:
         walled.write(out)
         found = _HEADERS[name, declarations] = _Header(dict(walled.macros), (*walled.included, name), out.getvalue())
     return found
+
+
+def header_macros() -> dict[tuple[str, bool], tuple[dict[str, dict[str, Any]], tuple[str, ...], str]]:
+    """The kit headers preprocessed so far, as plain data (a macro's attributes, its tokens as tuples): what
+    `adopt_headers` takes in another process of this kit."""
+    return {key: ({name: {**vars(macro), "value": [(t.type, t.value, t.lineno, t.lexpos, getattr(t, "source", ""))
+                                                   for t in macro.value]}
+                   for name, macro in header.macros.items()}, header.includes, header.text)
+            for key, header in _HEADERS.items()}
+
+
+def adopt_headers(plain: Mapping[tuple[str, bool], tuple[dict[str, dict[str, Any]], tuple[str, ...], str]]) -> None:
+    """Take the kit headers preprocessed elsewhere (see `header_macros`), as if preprocessed here."""
+    lexer = pcpp.Preprocessor().lexer
+    lex_token = importlib.import_module(type(lexer).__module__).LexToken     # pcpp's own copy of PLY's
+    for key, (macros, includes, text) in plain.items():
+        rebuilt = {}
+        for name, attributes in macros.items():
+            macro = pcpp.Macro.__new__(pcpp.Macro)
+            macro.__dict__.update(attributes, value=[_token(lex_token, lexer, *token)
+                                                           for token in attributes["value"]])
+            rebuilt[name] = macro
+        _HEADERS.setdefault(key, _Header(rebuilt, tuple(includes), text))
+
+
+def _token(lex_token: type, lexer: Any, kind: str, value: str, lineno: int, lexpos: int, source: str) -> Any:
+    token = lex_token()
+    token.type, token.value, token.lineno, token.lexpos, token.source, token.lexer = (kind, value, lineno, lexpos,
+                                                                                      source, lexer)
+    return token
 
 
 def preprocess(text: str, filename: str, locked: Mapping[str, int], deadline: float) -> Preprocessed:

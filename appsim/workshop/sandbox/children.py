@@ -59,12 +59,27 @@ DEFAULT_LIMITS = Limits()
 
 # ====================================================================== one submission's sandbox
 
+def _memory_file(data: bytes) -> int:
+    """A file descriptor from which `data` reads (a memfd where Linux has them, else a pipe small data fits in)."""
+    if hasattr(os, "memfd_create"):
+        descriptor = os.memfd_create("appsim-kit-headers")
+        view = memoryview(data)
+        while view:
+            view = view[os.write(descriptor, view):]
+        os.lseek(descriptor, 0, os.SEEK_SET)
+        return descriptor
+    read, write = os.pipe()
+    os.write(write, data)
+    os.close(write)
+    return read
+
+
 class Zygote:
     """One submission's sandbox: a sandboxed Python process that booted once (see `zygote`) and forks a fresh child for
     each of that submission's exercises. The grader's end of its control socket; `expires_at` ends it if it does not
     boot in time."""
 
-    def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog):
+    def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog, c_state: bytes | None = None):
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         self.control = ours
         self.limits = limits
@@ -74,9 +89,12 @@ class Zygote:
                     "seccomp": seccomp_program().hex() if self.isolated else "", "control_fd": theirs.fileno(),
                     "path": import_path() if isolation is None else list(isolation.path),
                     "c_options": list(limits.c_options)}
+        passed = [theirs.fileno()]
+        if c_state is not None:         # the kit headers' state (grader-made, trusted): the zygote loads C at boot
+            state_fd = settings["c_state_fd"] = _memory_file(c_state)
+            passed.append(state_fd)
         python = sys.executable if isolation is None else isolation.executable
         argv = [python, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
-        passed = [theirs.fileno()]
         if isolation is not None:
             read, write = os.pipe()
             os.write(write, seccomp_program(may_fork=True))
@@ -387,6 +405,7 @@ class Sandbox:
         self._spare: Zygote | None = None
         self._zygote: Zygote | None = None
         self._owner: object = None
+        self.c_state: bytes | None = None   # once a C firmware came: the kit headers' state, for every sandbox after
 
     def take(self, deadline: float, owner: object = None, *, spare: bool = False, c: bool = False) -> Child:
         """A fresh child for one exercise of submission `owner`, in that submission's sandbox (booted now, or while the
@@ -429,8 +448,14 @@ class Sandbox:
         if self._spare is None:
             self._spare = self._zygote_()
 
+    def expect_c(self, c_state: bytes) -> None:
+        """C firmware is being graded: sandboxes booted from now on load the C translator and `c_state`, the kit
+        headers' state (`appsim.firmware.c18.header_state`), at boot (a spare boots while the submission before it is
+        graded), so that none parses the headers itself."""
+        self.c_state = c_state
+
     def _zygote_(self) -> Zygote:
-        return Zygote(self.isolation, self.limits, self.watchdog)
+        return Zygote(self.isolation, self.limits, self.watchdog, self.c_state)
 
     def close(self) -> None:
         for zygote in (self._spare, self._zygote):

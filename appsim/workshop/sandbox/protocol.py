@@ -60,6 +60,7 @@ FORK_C = b"C"       # FORK for a C firmware: the zygote loads the C translator a
 FORKED_MESSAGE = struct.Struct("<ci")
 ENDED_MESSAGE = struct.Struct("<ciid")
 MAX_CONTROL = 32
+MAX_STATE = 16 << 20                # the kit headers' state a zygote may be handed at boot (about 50 kB)
 
 WRITE_ITEM = struct.Struct("<cHB")
 SERVED_ITEM = struct.Struct("<cHqB")
