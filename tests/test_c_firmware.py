@@ -638,3 +638,51 @@ def test_the_grader_gives_a_submissions_exercises_to_one_worker_and_so_one_sandb
     assert taken["one"][:8] == ["alice"] * 7 + ["carol"] and taken["two"][:7] == ["bob"] * 7
     assert taken["two"][7:] == ["carol"] * 3 and taken["one"][8:] == ["carol"] * 3, \
         "the last submission's tasks go to whichever worker is free, so that both end together"
+
+
+# ====================================================================== issue 22 and 28, in C
+
+def test_a_c_identifier_of_no_station_gets_the_python_twins_partial_credit_in_check_and_in_grade(tmp_path):
+    """MESSAGE_ID1 read by appsim.firmware.identity from the C module as from the Python one, in process and in the
+    sandbox: the same station (station 1's place), the same partial credit, the same words."""
+    import io
+
+    from appsim.workshop.grading.grade import run
+    from appsim.workshop.sandbox.children import Limits
+
+    c = (SOLUTIONS / "ex2.c").read_text().replace("#define MESSAGE_ID1 0x100", "#define MESSAGE_ID1 0x160")
+    python = (SOLUTIONS / "ex2.py").read_text().replace("MESSAGE_ID1 = 0x100", "MESSAGE_ID1 = 0x160")
+    for name, text in (("c_student", ("ex2.c", c)), ("py_student", ("ex2.py", python))):
+        (tmp_path / "class" / name).mkdir(parents=True)
+        (tmp_path / "class" / name / text[0]).write_text(text[1])
+    records = {r["submission"]: r["exercises"]["ex2"] for r in run(
+        [tmp_path / "class"], results=tmp_path / "g.jsonl", jobs=1, seed=9, limits=Limits(time_s=20),
+        out=io.StringIO())}
+    in_process = check("ex2", tmp_path / "class" / "c_student" / "ex2.c", seed=9)
+    assert records["c_student"]["score"] == in_process.score == records["py_student"]["score"] == 4
+    assert [r["message"] for r in records["c_student"]["checks"]][1:] == [r.message for r in in_process.checks][1:]
+    assert "MESSAGE_ID1 = 0x160 is not a station's identifier" in " ".join(r.message for r in in_process.checks)
+
+
+def test_appsim_check_takes_a_notebook_whose_firmware_cell_is_c(tmp_path):
+    import subprocess
+    import sys
+
+    import nbformat
+
+    notebook = nbformat.read(KIT / "notebooks" / "ex1.ipynb", as_version=4)
+    for cell in notebook.cells:
+        tags = cell.metadata.get("tags", [])
+        if "firmware-c" in tags:
+            cell.source = "%%writefile ex1.c\n" + (SOLUTIONS / "ex1.c").read_text()
+        if "firmware-choice" in tags:
+            cell.source = 'FIRMWARE = "ex1.c"'
+    nbformat.write(notebook, tmp_path / "mine.ipynb")
+    done = subprocess.run([sys.executable, "-m", "appsim", "check", "ex1", str(tmp_path / "mine.ipynb"), "--seed", "3"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0 and done.stdout.startswith("EX1: 5/5"), done.stdout + done.stderr
+    notebook.metadata["appsim"] = {"exercise": "ex2"}
+    nbformat.write(notebook, tmp_path / "other.ipynb")
+    refused = subprocess.run([sys.executable, "-m", "appsim", "check", "ex1", str(tmp_path / "other.ipynb")],
+                             capture_output=True, text=True)
+    assert refused.returncode == 2 and "EX2's notebook" in refused.stderr, refused.stderr
