@@ -187,7 +187,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     problem = None if args.firmware is None else refusal(args.exercise, args.firmware)
     if problem is not None:
         raise FirmwareError(problem)
-    verdict = check(args.exercise, args.firmware, seed=args.seed)
+    verdict = check(args.exercise, args.firmware, seed=args.seed, c_options=args.c_option)
     print(verdict)
     return 0 if verdict.passed else 1
 
@@ -211,7 +211,8 @@ def cmd_grade(args: argparse.Namespace) -> int:
     from appsim.workshop.sandbox.children import Limits
     try:
         run(args.paths, results=args.json, csv_path=args.csv, gradescope_path=args.gradescope, jobs=args.jobs,
-            seed=args.seed, limits=Limits(time_s=args.time_limit, stall_s=min(10.0, args.time_limit)),
+            seed=args.seed, limits=Limits(time_s=args.time_limit, stall_s=min(10.0, args.time_limit),
+                                          c_options=tuple(args.c_option)),
             trusted=args.trusted, regrade=args.regrade)
     except GradeError as error:
         print(f"appsim grade: {error}", file=sys.stderr)
@@ -221,6 +222,26 @@ def cmd_grade(args: argparse.Namespace) -> int:
               "to resume without grading it again", file=sys.stderr)
         return INTERRUPTED
     return 0
+
+
+C18_OPTIONS = ("-Oi", "-k")          # appsim.firmware.c18.OPTIONS (not imported here: the C translator loads slowly)
+
+
+def _c_option_value(text: str) -> str:
+    option = text if text.startswith("-") else f"-{text}"
+    if option not in C18_OPTIONS:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a C18 option the kit knows: -Oi (integer promotions, as "
+                                         "ISO C has them), -k (plain char unsigned)")
+    return option
+
+
+def _c_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--c-option", type=_c_option_value, action="append", default=[], metavar="OPTION",
+                        help="an MPLAB C18 option for .c firmware, as its command line takes it: --c-option=-Oi "
+                             "(integer promotions; C18's default has none), --c-option=-k (plain char unsigned); "
+                             "may be given more than once")
+    parser.add_argument("-Oi", dest="c_option", action="append_const", const="-Oi",
+                        help="the same as --c-option=-Oi, as C18's command line writes it")
 
 
 class _Version(argparse.Action):
@@ -265,7 +286,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="appsim",
         description="CAN Workshop 202 on simulated Microchip APP023 boards (PIC18F8680 ECAN + AN738). "
                     "Firmware is a Python file that reads like the workshop's C: "
-                    "`from appsim.firmware import *` and a main() that loops forever. "
+                    "`from appsim.firmware import *` and a main() that loops forever; or the workshop's C itself, "
+                    "a .c file for MPLAB C18 (see docs/c-firmware.md). "
                     "Everything runs on a simulated clock, deterministic, with no hardware; "
                     "--interface/--channel join any python-can bus (a vcan, a real adapter) in real time.")
     parser.add_argument("--version", action=_Version,
@@ -283,13 +305,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     board = commands.add_parser(
         "board", help="run one firmware file on one simulated board",
-        description="Run FIRMWARE (a .py file with main()) on one APP023 board (station 1) and print what "
-                    "it sent and received and its LCD. Alone on the simulated bus a Normal-mode node gets "
+        description="Run FIRMWARE (a .py file with main(), or a .c file) on one APP023 board (station 1) and print "
+                    "what it sent and received and its LCD. Alone on the simulated bus a Normal-mode node gets "
                     "no ACK; with --interface/--channel it joins that bus in real time.")
     board.add_argument("firmware", metavar="FIRMWARE", help="path of the firmware file, e.g. exercises/ex1.py")
     board.add_argument("--potentiometer", type=_potentiometer, default=666,
                        help="the A/D value on AN0, 0..1023 (default 666)")
     board.add_argument("--name", default="station1", help="the board's name in the trace (default station1)")
+    _c_option(board)
 
     classroom = commands.add_parser(
         "classroom", help="the master and six stations at one exercise",
@@ -297,7 +320,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "--join puts your firmware on a station. With --interface socketcan --channel vcan0 the "
                     "whole workshop goes on that bus in real time (candump vcan0 shows it).")
     classroom.add_argument("--exercise", type=_classroom_exercise, default=6, help="1..6, ex1..ex6 (default 6)")
-    classroom.add_argument("--join", metavar="FIRMWARE", help="your firmware file, on --station")
+    classroom.add_argument("--join", metavar="FIRMWARE", help="your firmware file (.py or .c), on --station")
+    _c_option(classroom)
     classroom.add_argument("--station", type=_station,
                            help="with --join: which station your board takes, 1..6 (default 1); its MESSAGE_ID1 "
                                 "must be that station's, 0x100 + 0x10 x (station - 1)")
@@ -371,8 +395,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     grade = commands.add_parser(
         "grade", help="grade a class: every submission's exercises, each firmware in a sandboxed process",
-        description="Grade submissions: PATH is a directory holding ex1.py .. ex6.py, demo1_monitor.py (or "
-                    "notebooks whose firmware cell is tagged `firmware`), a directory of those, or a .zip. "
+        description="Grade submissions: PATH is a directory holding ex1.py .. ex6.py, demo1_monitor.py (or in C "
+                    "ex1.c .. ex6.c, demo1_monitor.c; or notebooks whose firmware cell is tagged `firmware`), a "
+                    "directory of those, or a .zip. "
                     "Each record is appended to --json as it is graded; the same command again resumes. "
                     "See docs/grading.md.")
     grade.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="submissions, classes or zips")
@@ -394,6 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     grade.add_argument("--trusted", action="store_true",
                        help="run firmware WITHOUT operating-system isolation, where the machine has none (macOS, no "
                             "bubblewrap): only for code you trust")
+    _c_option(grade)
     grade.set_defaults(handler=cmd_grade)
 
     notebooks = commands.add_parser(
@@ -435,9 +461,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "Exit status 0 with full marks.")
     checking.add_argument("exercise", type=_exercise_name, metavar="EXERCISE",
                           help="ex1 .. ex6 (or 1 .. 6, EX3 ...) or demo1")
-    checking.add_argument("firmware", nargs="?", help="your firmware file, or your notebook (its firmware cell, as "
-                                                      "appsim grade reads it) (default: exercises/EXERCISE.py)")
+    checking.add_argument("firmware", nargs="?",
+                          help="your firmware file, .py or .c, or your notebook (its firmware cell, as appsim grade "
+                               "reads it) (default: exercises/EXERCISE.py)")
     checking.add_argument("--seed", type=_seed, help="seed of the random inputs (default: a fresh one, printed)")
+    _c_option(checking)
     checking.set_defaults(handler=cmd_check)
     return parser
 

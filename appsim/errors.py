@@ -75,6 +75,22 @@ class FirmwareError(AppsimError):
     """A firmware file that cannot run, with what to do about it."""
 
 
+class CCompileError(FirmwareError):
+    """A C firmware file the kit's C18 will not translate: at its line and column, what is wrong and what to do."""
+
+    def __init__(self, message: str, filename: str = "", line: int = 0, column: int = 0) -> None:
+        # the file's name, as the loader names a Python file: the same in `appsim check` and in the grader's sandbox
+        where = ":".join(str(part) for part in (filename.replace("\\", "/").rsplit("/", 1)[-1], line, column) if part)
+        super().__init__(f"{where}: {message}" if where else message)
+        self.filename, self.line, self.column, self.reason = filename, line, column, message
+
+
+class CRuntimeError(AppsimError, RuntimeError):
+    """A C firmware did what C18 lets through and the board would get wrong (an index past an array's end, a char
+    where sprintf reads an int): the message says what, in C's words; the traceback's last line of the .c file says
+    where."""
+
+
 class AN738Error(AppsimError, ValueError):
     """A call the C library would accept and silently get wrong (or hang on)."""
 

@@ -369,7 +369,7 @@ def cmd_board(args: argparse.Namespace, session: Session) -> None:
     """One firmware file on one board, on its own bus (or on an outside bus): what it did and its LCD."""
     out, firmware = session.out, Path(args.firmware)
     board = APP023(session.bus, args.name, potentiometer=args.potentiometer)
-    board.run(firmware)
+    board.run(load_firmware(firmware, c_options=args.c_option))
     print(f"APP023 '{args.name}' running {firmware} for {args.seconds:g} s (simulated), "
           f"potentiometer {args.potentiometer}, bus {session.bus.bit_rate // 1000} kbit/s", file=out)
     session.run(args.seconds, live=True)
@@ -393,7 +393,7 @@ def cmd_classroom(args: argparse.Namespace, session: Session) -> None:
     classroom = Classroom(session.bus, args.exercise, seed=args.seed, monitor=session.link is None)
     station = args.station or 1
     if args.join:
-        firmware = load_firmware(args.join)
+        firmware = load_firmware(args.join, c_options=args.c_option)
         expected = station_ids(station)["MESSAGE_ID1"]
         own = getattr(firmware, "MESSAGE_ID1", expected)
         if own != expected:

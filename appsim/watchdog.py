@@ -131,7 +131,8 @@ def what_it_saw(process: Process, frame: FrameType, ran: str, asleep: bool) -> s
     if process.routine != "main()":
         return (f"{ran}: it never returns, so main() never runs again. A real board would hang there too (a routine "
                 "runs until its RETFIE); end the loop, and keep the routine short: set a flag that main() acts on")
-    return (f"{ran}: an endless loop such as `while True: pass`. A real board would hang there too; poll a "
+    endless = "`while(1);`" if str(process.filename or "").lower().endswith(".c") else "`while True: pass`"
+    return (f"{ran}: an endless loop such as {endless}. A real board would hang there too; poll a "
             "register in the loop (e.g. CANIsRxReady()) or end it")
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from appsim.bus.link import PYTHON_QUEUE_FRAMES
 from appsim.workshop.course import SOLUTIONS
-from bench import busywait, flood, fullload, grading, interrupts, knobs, linked, memory, pythoncan, served
+from bench import busywait, cfirmware, flood, fullload, grading, interrupts, knobs, linked, memory, pythoncan, served
 from bench.figures import Figure, machine, repeat, table
 
 
@@ -174,6 +174,33 @@ def _interrupts(config: Config) -> list[Figure]:
     return figures
 
 
+def _c_firmware(config: Config) -> list[Figure]:
+    """C firmware (translated) against the Python firmware it twins: run time, load time, a class graded."""
+    seconds = 8 * config.scaling_s * 25
+    ratios = []
+    for _ in range(max(config.runs, 1)):
+        python, c = cfirmware.classroom_run_s("python", seconds), cfirmware.classroom_run_s("c", seconds)
+        ratios.append(c / python)
+    run = Figure("C firmware / Python firmware, run time: six stations, Ex2..Ex6", "ratio", tuple(ratios),
+                 target=1.3, lower_is_better=True,
+                 note=f"{seconds:g} simulated s each, the same bus trace (tests/test_c_firmware.py)")
+    first = Figure("C: translate and load a solution, first in a process (headers parsed)", "wall ms",
+                   repeat(config.runs, cfirmware.first_load_ms), note="python -c: import the translator, ex6.c")
+    each = Figure("C: translate and load one more solution file (headers known)", "wall ms",
+                  repeat(config.runs, cfirmware.next_load_ms), note="ex1.c .. ex6.c, demo1_monitor.c: the mean")
+    cached = Figure("C: load a file translated before (cached by content, defines, options)", "wall ms",
+                    repeat(config.runs, cfirmware.cached_load_ms), note="a fresh module: globals of its own")
+    size = config.class_size
+    graded = []
+    for _ in range(max(config.runs, 1)):
+        python = grading.appsim_grade_s(size, jobs=2, language="python")
+        graded.append(grading.appsim_grade_s(size, jobs=2, language="c") / python)
+    room = Figure(f"appsim grade: a class of {size} in C / the same class in Python, --jobs 2", "ratio",
+                  tuple(graded), target=1.2, lower_is_better=True,
+                  note="full submissions (Ex1..Ex6, Demo1), sandboxed, the whole command")
+    return [run, first, each, cached, room]
+
+
 def _linked(config: Config) -> list[Figure]:
     spacing = linked.frame_spacing_ms(config.linked_s)
     jitter = [abs(gap - linked.EX2_PERIOD_MS) for gap in spacing]
@@ -271,8 +298,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             parser.error(f"--runs is how often each figure is measured, at least 1; got {args.runs}")
         config = Config(**{**config.__dict__, "runs": args.runs})
     figures: list[Figure] = []
-    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _linked, _knobs, _served,
-                 _floods):
+    for part in (_full_load, _scaling, _python_can, _busy_wait, _grading, _interrupts, _c_firmware, _linked, _knobs,
+                 _served, _floods):
         figures += part(config)
     print(f"appsim speed, {config.runs} run(s) per figure, on {machine()}\n")
     print(table(figures))

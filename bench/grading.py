@@ -16,14 +16,19 @@ import time
 from pathlib import Path
 
 import appsim
-from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS
+from appsim.workshop.course import C_FILES, EXERCISE_FILES, SOLUTIONS
 
 
-def one_submission_s(seed: int = 1) -> float:
-    """Wall seconds to check the solutions of Ex1..Ex6 and Demo1 in process (every check must pass)."""
+def _files(language: str) -> dict[str, str]:
+    return C_FILES if language == "c" else EXERCISE_FILES
+
+
+def one_submission_s(seed: int = 1, language: str = "python") -> float:
+    """Wall seconds to check the solutions of Ex1..Ex6 and Demo1 (in `language`) in process (every check must
+    pass)."""
     from appsim.workshop.checks import check
     started = time.perf_counter()
-    verdicts = [check(exercise, SOLUTIONS / name, seed=seed) for exercise, name in EXERCISE_FILES.items()]
+    verdicts = [check(exercise, SOLUTIONS / name, seed=seed) for exercise, name in _files(language).items()]
     wall = time.perf_counter() - started
     failed = [v for v in verdicts if not v.passed]
     if failed:
@@ -31,16 +36,18 @@ def one_submission_s(seed: int = 1) -> float:
     return wall
 
 
-def appsim_grade_s(submissions: int, jobs: int, seed: int = 1, *, trusted: bool = False) -> float:
-    """Wall seconds for `appsim grade CLASS --jobs N` on `submissions` copies of the solutions (Ex1..Ex6, Demo1),
-    the whole command, Python's start included; `trusted` runs it without isolation (for the isolation's cost)."""
+def appsim_grade_s(submissions: int, jobs: int, seed: int = 1, *, trusted: bool = False,
+                   language: str = "python") -> float:
+    """Wall seconds for `appsim grade CLASS --jobs N` on `submissions` copies of the solutions (Ex1..Ex6, Demo1; in
+    `language`), the whole command, Python's start included; `trusted` runs it without isolation (for the
+    isolation's cost)."""
     compileall.compile_dir(Path(appsim.__file__).parent, quiet=1)
     with tempfile.TemporaryDirectory(prefix="appsim-bench-") as scratch:
         room = Path(scratch) / "class"
         for k in range(submissions):
             student = room / f"student{k:02d}"
             student.mkdir(parents=True)
-            for name in EXERCISE_FILES.values():
+            for name in _files(language).values():
                 shutil.copy(SOLUTIONS / name, student)
         command = [sys.executable, "-m", "appsim", "grade", str(room), "--jobs", str(jobs), "--seed", str(seed),
                    "--json", str(Path(scratch) / "grades.jsonl"), *(["--trusted"] if trusted else [])]

@@ -100,25 +100,30 @@ def test_no_answer_key_on_any_of_the_grader_s_paths_reaches_a_firmware(tmp_path)
 
 def test_the_sandbox_is_given_the_runtime_and_copies_and_none_of_the_grader_s_import_folders(tmp_path, monkeypatch):
     """What is bound is the runtime's (the interpreter, its standard library, its libraries); what is copied is the
-    kit's package without its solutions, and only the installed packages the firmware library imports."""
+    kit's package without its solutions, and only the installed packages the firmware library imports (greenlet) and
+    the C translator does (pcpp, pycparser)."""
     course = tmp_path / "course"
     course.mkdir()
     monkeypatch.setattr(sys, "path", [sys.path[0], str(course), *sys.path[1:]])
     monkeypatch.chdir(course)
     walls = isolation()
     import greenlet
+    import pcpp
+    import pycparser
 
     import appsim
 
     kit = Path(appsim.__file__).resolve().parent
+    packages = [Path(package.__file__).parent for package in (greenlet, pcpp, pycparser)]
     for folder in (course, kit, Path(sys.prefix), Path(sysconfig.get_path("purelib"))):
         folder = folder.resolve()
         inside = [bound for bound in walls.binds if folder.is_relative_to(bound)]
         assert not inside or any(folder.is_relative_to(c) for c in walls.covered), (folder, inside)
     sources = {Path(source) for source, _ in walls.copies}
-    assert all(s.is_relative_to(kit) or s.is_relative_to(Path(greenlet.__file__).parent) for s in sources)
+    assert all(s.is_relative_to(kit) or any(s.is_relative_to(package) for package in packages) for s in sources)
     assert not any(s.is_relative_to(SOLUTIONS.resolve()) or "solutions" in s.parts for s in sources)
-    assert {d.split("/")[2] for _, d in walls.copies if d.startswith(mounts.SITE_FOLDER + "/")} == {"greenlet"}
+    assert {d.split("/")[2] for _, d in walls.copies if d.startswith(mounts.SITE_FOLDER + "/")} == {
+        "greenlet", "pcpp", "pycparser"}, "the firmware library's packages, and the C translator's (child.boot_c)"
 
 
 def test_the_mount_table_names_none_of_the_grader_s_folders(tmp_path):

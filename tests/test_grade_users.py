@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from venvs import make_venv
 
-from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS
+from appsim.workshop.course import C_FILES, EXERCISE_FILES, SOLUTIONS
 
 KIT = Path(__file__).resolve().parent.parent
 USER = os.environ.get("APPSIM_TEST_USER")                   # set by .ci/run, which creates the user and its venv
@@ -34,6 +34,9 @@ def a_class(root: Path) -> Path:
         (room / name).mkdir(parents=True)
         for file in EXERCISE_FILES.values():
             (room / name / file).write_text(transform((SOLUTIONS / file).read_text()))
+    (room / "cara").mkdir()                 # in C: the translator (pcpp, pycparser) must reach the sandbox too
+    for file in C_FILES.values():
+        (room / "cara" / file).write_text((SOLUTIONS / file).read_text())
     return room
 
 
@@ -73,6 +76,7 @@ def test_from_the_folder_holding_the_clone_in_a_venv_over_a_private_python(tmp_p
                             text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
     assert "alice                     35/35" in result.stdout and "pat                       35/35" in result.stdout
+    assert "cara                      35/35" in result.stdout, result.stdout
 
 
 @pytest.mark.skipif(not (USER and USER_PYTHON and os.geteuid() == 0),
@@ -93,7 +97,8 @@ def test_the_grading_and_attack_tests_pass_as_an_ordinary_user():
         result = subprocess.run(
             [runuser, "-u", USER, "--", USER_PYTHON, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
              "tests/test_grade.py", "tests/test_grade_attacks.py", "tests/test_grade_mounts.py",
-             "tests/test_grade_classes.py"],
+             "tests/test_grade_classes.py", "tests/test_grade_attacks_c.py", "tests/test_c_interrupts.py",
+             "tests/test_c_firmware.py::test_a_class_in_c_is_graded_in_the_sandbox_either_language_per_exercise"],
             cwd=copy, env=env, capture_output=True, text=True, timeout=900)
         assert result.returncode == 0, result.stdout[-6000:] + result.stderr[-3000:]
         assert " passed" in result.stdout and "skipped" not in result.stdout.splitlines()[-1]

@@ -45,7 +45,7 @@ def test_a_folder_given_as_the_firmware_is_called_a_folder(tmp_path, command):
     (tmp_path / "ex1").mkdir()
     result = appsim(*command.split(), "ex1", cwd=tmp_path)
     assert result.returncode == 2 and result.stdout == ""
-    assert "ex1 is a folder, not a firmware file: give the path of a .py file" in result.stderr
+    assert "ex1 is a folder, not a firmware file: give the path of a .py or .c file" in result.stderr
 
 
 def test_check_takes_a_notebook_and_judges_its_firmware_cell_as_grade_does(tmp_path):

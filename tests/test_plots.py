@@ -275,7 +275,8 @@ def test_recorded_wire_draws_what_the_bus_carried_past_eof_as_the_overload_frame
     figure = plots.recorded_wire(event, 125_000)
     drawn = list(figure.axes[0].lines[0].get_ydata())[:-1]
     bit_ps = PS_PER_SECOND // 125_000
-    on_wire = [next(level for time, level in reversed(event.wire_changes()) if time <= event.start_ps + i * bit_ps + bit_ps // 2)
+    changes = event.wire_changes()
+    on_wire = [next(level for time, level in reversed(changes) if time <= event.start_ps + i * bit_ps + bit_ps // 2)
                for i in range((event.end_ps - event.start_ps) // bit_ps)]
     assert drawn == on_wire
     labels = texts(figure)

@@ -1,5 +1,6 @@
 """The README as a newcomer on Debian follows it: its top block, and "Your first hour" from a clone to the first
-passing check and a classroom that the reader's board joins without a collision, each run as written in a fresh venv.
+passing check (in Python, then in C) and a classroom that the reader's board joins without a collision, each run as
+written in a fresh venv.
 
 Marked `readme` (about two minutes, most of it making the venvs and installing the kit): `python -m pytest -m "not
 readme"` leaves it out. What it covers: every command of those code blocks, in order, in bash, with Debian's own PATH
@@ -100,6 +101,7 @@ def test_the_readme_takes_a_newcomer_from_a_clone_to_a_passing_check(tmp_path):
     assert {command: status for command, status in statuses.items() if status} == {starter: 1}, result.stderr
     assert f"{tmp_path}/appsim/exercises/ex1.py ran" in out, "the venv's appsim, installed from the clone"
     assert "MASTER CONSOLE" in out and "EX1: 3/5" in out and "EX1: 5/5" in out
+    assert "my_ex1.c ran" in out and out.count("EX1: 5/5") == 2, "the same fix in C passes too"
     assert "station2 runs my_ex3.py" in out and "warning" not in result.stderr
     classroom = out[out.index("station2 runs my_ex3.py"):]
     assert re.search(r"\d+ frames, 0 error frames in 2.000 s", classroom), "station 2's ID: no collision"

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import re
+import sys
 import threading
 import time
 from pathlib import Path
@@ -115,6 +116,12 @@ def test_any_line_is_a_command_or_an_error_that_says_what_is_wrong(line):
 SOLUTION = Path(__file__).resolve().parent.parent / "solutions" / "demo1_monitor.py"
 
 
+@pytest.fixture(params=["demo1_monitor.py", "demo1_monitor.c"])
+def in_both_languages(request, monkeypatch):
+    """The adapter as the Python solution and as its C twin (solutions/demo1_monitor.c)."""
+    monkeypatch.setattr(sys.modules[__name__], "SOLUTION", SOLUTION.with_name(request.param))
+
+
 def station(can_id, received, *, every_ms=20):
     """A node at 125 kbit/s: sends `can_id` every `every_ms` and keeps what it receives."""
     def main():
@@ -181,6 +188,7 @@ class AdapterRoom:
             assert process.failure is None, f"firmware {process.name} crashed:\n{process.failure_text}"
 
 
+@pytest.mark.usefixtures("in_both_languages")
 def test_the_adapter_answers_each_command_as_lawicel_specifies():
     room = AdapterRoom()
     room.run(0.01)
@@ -202,6 +210,7 @@ def test_the_adapter_answers_each_command_as_lawicel_specifies():
     assert room.command(b"F\r").startswith(b"F") and room.command(b"O\r") == b"\a"
 
 
+@pytest.mark.usefixtures("in_both_languages")
 def test_the_adapter_reports_the_frames_on_the_bus_and_sends_what_it_is_told():
     room = AdapterRoom()
     room.run(0.01)
@@ -254,6 +263,7 @@ def with_python_can(room: AdapterRoom, usb: UsbCdc, pc_program) -> dict:
 
 
 @pytest.mark.parametrize("transport", ["pty", "socket"])
+@pytest.mark.usefixtures("in_both_languages")
 def test_python_can_uses_the_board_as_an_slcan_adapter_to_receive_and_to_send(transport):
     room = AdapterRoom()
     room.run(0.01)
@@ -284,6 +294,7 @@ def test_python_can_uses_the_board_as_an_slcan_adapter_to_receive_and_to_send(tr
 
 
 @pytest.mark.parametrize("transport", ["pty", "socket"])
+@pytest.mark.usefixtures("in_both_languages")
 def test_python_can_uses_the_adapter_after_a_program_flooded_it_at_full_speed_and_left(transport):
     room = AdapterRoom(busy=True)
     room.run(0.01)
@@ -304,6 +315,7 @@ def test_python_can_uses_the_adapter_after_a_program_flooded_it_at_full_speed_an
     assert results["message"] is not None and results["message"].arbitration_id in (0x088, 0x0AA)
 
 
+@pytest.mark.usefixtures("in_both_languages")
 def test_an_adapter_opened_at_another_bit_rate_cannot_read_the_bus_and_disturbs_it():
     room = AdapterRoom()
     room.run(0.01)
@@ -365,6 +377,7 @@ class PcOnThePort:
         self.usb.close()
 
 
+@pytest.mark.usefixtures("in_both_languages")
 def test_the_adapter_answers_again_after_the_pc_wrote_while_it_opened_the_channel():
     """Opening and closing wait for the bus to be idle (1 to 3 ms here): L CR C CR takes the adapter longer than
     the 2 ms the PC takes to write it, so what waits fills the adapter's 32 bytes of RAM, then the USART's 2-byte
@@ -383,6 +396,7 @@ def test_the_adapter_answers_again_after_the_pc_wrote_while_it_opened_the_channe
 PYTHON_CAN_OPENS = b"C\rS4\r\rO\rO\r"
 
 
+@pytest.mark.usefixtures("in_both_languages")
 def test_what_python_can_writes_as_it_opens_the_channel_and_right_after_is_all_answered_on_a_busy_bus():
     """python-can writes its commands without reading the answers: it opens and asks for the version (or sends
     a frame) at once. Opening or closing waits for the busy bus to be idle, up to 3 ms, longer than the USART's

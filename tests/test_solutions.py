@@ -266,16 +266,20 @@ def test_the_interrupt_driven_solutions_pass_every_check_of_their_exercise(exerc
     assert verdict.score == verdict.max_score, verdict
 
 
-def test_grading_the_solutions_folder_grades_its_own_files_and_not_the_interrupt_driven_ones_below():
+def test_grading_the_solutions_folder_reads_its_own_files_and_not_the_interrupt_driven_ones_below():
     """`appsim grade solutions/` is one submission of solutions/ex1.py .. (solutions/interrupts/ is not a classmate
-    nor a second copy); `appsim grade solutions/interrupts` is one of its three."""
-    from appsim.workshop.course import EXERCISE_FILES, SOLUTIONS
+    nor a second copy); `appsim grade solutions/interrupts` is one of its three. Each holds every exercise in Python and
+    in C, twins, so each exercise is `ambiguous` between its two files there, as a student's would be."""
+    from appsim.workshop.course import C_FILES, EXERCISE_FILES, SOLUTIONS
     from appsim.workshop.grading.submissions import find_submissions
 
     [regular] = find_submissions([SOLUTIONS])
-    assert regular.files == {exercise: (name, (SOLUTIONS / name).read_bytes())
-                             for exercise, name in EXERCISE_FILES.items()}
+    assert regular.files == {}
+    for exercise, name in EXERCISE_FILES.items():
+        fault = regular.problems[exercise]
+        assert fault.kind == "ambiguous" and fault.message.startswith(f"{C_FILES[exercise]} and {name} were both"), \
+            fault
     [interrupts] = find_submissions([SOLUTIONS / "interrupts"])
-    assert {exercise: name for exercise, (name, _) in interrupts.files.items()} == {
-        "ex1": "ex1.py", "ex3": "ex3.py", "ex6": "ex6.py"}
-    assert interrupts.files["ex6"][1] == (SOLUTIONS / "interrupts" / "ex6.py").read_bytes()
+    assert {exercise: fault.kind for exercise, fault in interrupts.problems.items()} == {
+        "ex1": "ambiguous", "ex3": "ambiguous", "ex6": "ambiguous"}
+    assert "ex6.c and ex6.py were both handed in" in interrupts.problems["ex6"].message

@@ -134,6 +134,23 @@ def test_grade_grades_a_class_with_the_wheel(installed, elsewhere):
         "the record names the kit as --version does: a gradebook matched to its commit"
 
 
+def test_the_wheel_holds_the_c_headers_starters_and_solutions_and_checks_c(installed, elsewhere):
+    listed = subprocess.run([str(installed / "python"), "-c",
+                             "from importlib import resources; from appsim.workshop.course import solution, starter; "
+                             "headers = resources.files('appsim.firmware.c18') / 'include'; "
+                             "print(sorted(p.name for p in headers.iterdir() if p.name.endswith('.h'))); "
+                             "twins = resources.files('appsim.workshop.solutions.interrupts'); "
+                             "assert {'ex1.c', 'ex3.c', 'ex6.c'} <= {p.name for p in twins.iterdir()}; "
+                             "print(solution('ex1', 'c').read_text(), end='')"],
+                            cwd=elsewhere, capture_output=True, text=True, check=True).stdout
+    names, _, source = listed.partition("\n")
+    assert names == str(sorted(["p18f8680.h", "CAN18XX8.h", "adc.h", "timers.h", "usart.h", "delays.h", "stdio.h",
+                                "string.h", "stdlib.h", "APP023_GLCD.h"]))
+    (elsewhere / "ex1.c").write_text(source)
+    result = appsim(installed, elsewhere, "check", "ex1", "ex1.c")
+    assert result.returncode == 0 and result.stdout.startswith("EX1: 5/5"), result.stdout + result.stderr
+
+
 def test_the_workshop_dbc_and_the_python_can_interface_ship_in_the_wheel(installed, elsewhere):
     where = appsim(installed, elsewhere, "dbc")
     assert where.returncode == 0, where.stderr

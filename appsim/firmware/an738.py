@@ -1,5 +1,8 @@
 """Microchip AN738, the PIC18 CAN library of the workshop, in Python: same names, values and quirks.
 
+What AN738 makes a macro (CANIsRxReady(), CANIsTxReady(), CANAbortAll() ...) costs its register accesses only, as in C;
+the functions also cost their CALL (`library_call`).
+
 Every function acts only through the ECAN registers of the board it runs on, as the C library does;
 where the C library would silently corrupt a frame or hang, this one raises `AN738Error` instead.
 """
@@ -12,9 +15,11 @@ from typing import NamedTuple
 
 from appsim.chip.ecan import registers as R
 from appsim.chip.ecan.acceptance import pack_id, unpack_id
-from appsim.chip.sfr import FirmwareMCU
+from appsim.chip.sfr import FirmwareMCU, current_mcu
 from appsim.errors import AN738Error
 from appsim.firmware.runtime import library_call
+
+macro = current_mcu     # AN738's macros (CANIsRxReady, CANIsTxReady, ...): their register accesses, and no call
 
 TRUE, FALSE = True, False
 
@@ -192,7 +197,7 @@ def _check_mode(mode: int) -> None:
 def CANSetOperationModeNoWait(mode: int) -> None:
     """CANCON = mode: requests the mode (and clears ABAT and WIN); does not wait."""
     _check_mode(mode)
-    mcu = library_call()
+    mcu = macro()
     mcu.write(_CANCON, mode)
 
 
@@ -207,7 +212,7 @@ def CANSetOperationMode(mode: int) -> None:
 
 def CANGetOperationMode() -> int:
     """The requested mode, CANCON & 0xE0 (not CANSTAT: the mode asked for, not the mode reached)."""
-    return library_call().read(_CANCON) & CAN_OP_MODE.CAN_OP_MODE_BITS
+    return macro().read(_CANCON) & CAN_OP_MODE.CAN_OP_MODE_BITS
 
 
 def CANSetBaudRate(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
@@ -297,7 +302,7 @@ def CANInitialize(SJW: int, BRP: int, PHSEG1: int, PHSEG2: int, PROPSEG: int,
 
 def CANIsTxReady() -> bool:
     """TRUE if at least one of TXB0..TXB2 has TXREQ = 0."""
-    mcu = library_call()
+    mcu = macro()
     for con in _TXB_CON:
         if not mcu.read(con) & R.TXREQ:
             return True
@@ -338,7 +343,7 @@ def CANSendMessage(id: int, Data: Sequence[int] | bytes | None, DataLen: int,
 
 def CANAbortAll() -> None:
     """CANCON.ABAT = 1: abort every pending transmission."""
-    mcu = library_call()
+    mcu = macro()
     mcu.write(_CANCON, mcu.read(_CANCON) | R.ABAT)
 
 
@@ -346,7 +351,7 @@ def CANAbortAll() -> None:
 
 def CANIsRxReady() -> bool:
     """TRUE if RXB0 or RXB1 holds a message (RXFUL): one that passed the masks and filters."""
-    mcu = library_call()
+    mcu = macro()
     return bool(mcu.read(_RXB0CON) & R.RXFUL or mcu.read(_RXB1CON) & R.RXFUL)
 
 
@@ -403,25 +408,25 @@ def CANReceiveMessage() -> CANMessage:
 
 def CANIsBusOff() -> bool:
     """COMSTAT.TXBO: the transmit error counter passed 255."""
-    return bool(library_call().read(_COMSTAT) & R.TXBO)
+    return bool(macro().read(_COMSTAT) & R.TXBO)
 
 
 def CANIsTxPassive() -> bool:
     """COMSTAT.TXBP: the transmit error counter passed 127."""
-    return bool(library_call().read(_COMSTAT) & R.TXBP)
+    return bool(macro().read(_COMSTAT) & R.TXBP)
 
 
 def CANIsRxPassive() -> bool:
     """COMSTAT.RXBP: the receive error counter passed 127."""
-    return bool(library_call().read(_COMSTAT) & R.RXBP)
+    return bool(macro().read(_COMSTAT) & R.RXBP)
 
 
 def CANGetTxErrorCount() -> int:
-    return library_call().read(_TXERRCNT)
+    return macro().read(_TXERRCNT)
 
 
 def CANGetRxErrorCount() -> int:
-    return library_call().read(_RXERRCNT)
+    return macro().read(_RXERRCNT)
 
 
 __all__ = (

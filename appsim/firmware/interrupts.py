@@ -9,7 +9,7 @@ from collections.abc import Callable, Mapping
 from types import FunctionType, ModuleType
 from typing import Any, TypeVar
 
-from appsim.chip.sfr import HIGH_VECTOR, LOW_VECTOR, current_mcu
+from appsim.chip.sfr import HIGH_VECTOR, LOW_VECTOR, VECTOR_NAMES, current_mcu, missing_routine
 from appsim.errors import FirmwareError
 
 # C18's code around a routine, in instruction cycles. High priority (`#pragma interrupt`, RETFIE FAST: the core's
@@ -82,6 +82,23 @@ def _as_c18_builds_it(function: FunctionType, vector: int) -> Callable[[], None]
 
     routine.__qualname__ = routine.__name__ = function.__name__
     return routine
+
+
+def in_c18_words(text: str) -> str:
+    """A message of the kit's about interrupt routines (the core's, the watchdog's, a crash's) as a C firmware's
+    author reads it: `#pragma interrupt` where Python's words say `@interrupt`, and for a vector with no routine, C18's
+    pragma and the vector's GOTO to write."""
+    for vector, decorator in PRAGMAS.items():
+        pragma = f"#pragma {decorator[1:]}"
+        python = missing_routine(vector)
+        sections = {HIGH_VECTOR: "high_vector", LOW_VECTOR: "low_vector"}
+        c = (python.replace(f"has no {decorator} routine", f"has no {pragma} routine")
+             .replace(f"Mark the function that serves it with {decorator} (as `{pragma} NAME` does in C18)",
+                      f"Name the function that serves it with {pragma} NAME, and put C18's vector at 0x{vector:02X}: "
+                      f"#pragma code {sections[vector]}=0x{vector:02X}, a function holding only "
+                      f"`_asm GOTO NAME _endasm`, then #pragma code"))
+        text = text.replace(python, c).replace(VECTOR_NAMES[vector], VECTOR_NAMES[vector].replace(decorator, pragma))
+    return text
 
 
 def idle(loop: str, values: tuple[object, ...], calls: tuple[object, ...]) -> None:

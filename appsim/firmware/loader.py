@@ -1,4 +1,5 @@
-"""Loading a student's firmware file: plain Python with `from appsim.firmware import *` and a `main()`.
+"""Loading a student's firmware file: plain Python with `from appsim.firmware import *` and a `main()`, or C18's C
+(a `.c` file, translated by appsim.firmware.c18) with its `void main(void)`.
 
 Each load is a fresh module, so two boards running the same file never share their globals. An empty loop that only an
 interrupt routine can end (`while not flag: pass`) becomes a wait for the next interrupt (see `waits_for_interrupts`).
@@ -14,13 +15,13 @@ import linecache
 import re
 import sys
 import traceback
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 
 from appsim.chip.sfr import VECTOR_NAMES
 from appsim.errors import FirmwareError
-from appsim.firmware.interrupts import MARK, idle, routines
+from appsim.firmware.interrupts import MARK, idle, in_c18_words, routines
 from appsim.sim import TRACEBACK_FRAMES
 
 _loads = itertools.count()
@@ -28,26 +29,42 @@ IDLE = "__appsim_idle__"            # the name an empty waiting loop calls (apps
 LOOP_TEXT = 80                      # characters of a waiting loop's line (and of its file's name) its messages quote
 
 
-def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None) -> ModuleType:
-    """Load a firmware file as a new module; it must define `main()`.
+def load_firmware(path: str | Path, defines: Mapping[str, int] | None = None,
+                  c_options: Sequence[str] = ()) -> ModuleType:
+    """Load a firmware file as a new module; it must define `main()` (a .c file: `void main(void)`).
 
     `defines` works like `-D MESSAGE_ID1=0x110` on the C18 command line: each name's top-level
-    assignment (`MESSAGE_ID1 = 0x100`) gets the given value instead, and constants computed from it
-    follow. Six stations run one solution file with six identifiers this way.
+    assignment (`MESSAGE_ID1 = 0x100`; in C, its `#define MESSAGE_ID1 0x100`) gets the given value
+    instead, and constants computed from it follow. Six stations run one solution file with six
+    identifiers this way. `c_options` are C18's command-line options for a .c file (`-Oi`).
     """
     path = Path(path)
-    return load_source(path, read_firmware(path), defines)
+    return load_source(path, read_firmware(path), defines, c_options=c_options)
 
 
-def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | None = None) -> ModuleType:
+def is_c(path: str | Path, language: str | None = None) -> bool:
+    """Whether a firmware is C: `language` ("c" or "python") if given, else its file's suffix (.c)."""
+    if language is not None:
+        if language not in ("c", "python"):
+            raise ValueError(f"a firmware's language is 'c' or 'python'; got {language!r}")
+        return language == "c"
+    return Path(path).suffix.lower() == ".c"
+
+
+def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | None = None, *,
+                language: str | None = None, c_options: Sequence[str] = ()) -> ModuleType:
     """Load firmware from its bytes, as if from the file `path` (its name in messages and tracebacks), with
-    `defines` as `load_firmware` takes them. Its lines are what tracebacks show, whatever the file holds later."""
+    `defines` as `load_firmware` takes them. Its lines are what tracebacks show, whatever the file holds later.
+    C or Python: `language`, else the suffix of `path`."""
     path = Path(path)
+    if is_c(path, language):
+        from appsim.firmware import c18
+        return c18.load(path, source, defines, c_options)
     tree = _parse(path, source)
     linecache.cache[str(path)] = (len(source), None, source.decode("utf-8").splitlines(True), str(path))
     if defines:
         _apply_defines(tree, defines, path)
-    waits_for_interrupts(tree, path, source)
+    waits_for_interrupts(tree, path, source.decode("utf-8").splitlines())
     try:
         code = compile(tree, str(path), "exec")
     except SyntaxError as error:
@@ -82,28 +99,45 @@ _CONDITION_NODES = (ast.Name, ast.Constant, ast.UnaryOp, ast.BoolOp, ast.Compare
                     ast.unaryop, ast.boolop, ast.cmpop, ast.operator)
 
 
-def waits_for_interrupts(tree: ast.Module, path: Path, source: bytes) -> None:
+def waits_for_interrupts(tree: ast.Module, path: Path, lines: Sequence[str]) -> None:
     """Rewrite (in place) every provably empty waiting loop inside a function: `while COND:` whose body is only `pass`,
     `...` or `Nop()`, and whose condition reads names and constants with no call, attribute or subscript (no register
     read): `while True: pass`, `while not flag: pass`, `while count == seen: Nop()`. Only an interrupt routine can end
     such a loop, so on the chip it spins until one does; here each turn first calls `__appsim_idle__(LOOP, (NAMES),
     (CALLS))`, which waits until the next interrupt is taken (appsim.firmware.interrupts.idle: only when the names
-    hold plain values and the calls are the kit's Nop, so that nothing else can change the condition)."""
-    lines = source.decode("utf-8").splitlines()
-    functions = [node for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))]
-    loops = {id(node): node for function in functions for node in ast.walk(function) if isinstance(node, ast.While)}
-    for loop in loops.values():
+    hold plain values and the calls are the kit's Nop, so that nothing else can change the condition). `lines` are the
+    file's, which the loop's message quotes (a C file's: its C18 `while (!flag);` translates to exactly this shape)."""
+    for loop in _loops_in_functions(tree.body, False):
         if not _empty(loop) or not all(isinstance(node, _CONDITION_NODES) for node in ast.walk(loop.test)):
             continue
         names = list(dict.fromkeys(node.id for node in ast.walk(loop.test) if isinstance(node, ast.Name)))
         calls = ["Nop"] if any(isinstance(statement, ast.Expr) and isinstance(statement.value, ast.Call)
                                for statement in loop.body) else []
+        quoted = lines[loop.lineno - 1] if 0 < loop.lineno <= len(lines) else ""
         wait = ast.Expr(ast.Call(ast.Name(IDLE, ast.Load()), [
-            ast.Constant(f"line {loop.lineno} of {_shown(path.name)} (`{_shown(lines[loop.lineno - 1])}`)"),
+            ast.Constant(f"line {loop.lineno} of {_shown(path.name)} (`{_shown(quoted)}`)"),
             ast.Tuple([ast.Name(name, ast.Load()) for name in names], ast.Load()),
             ast.Tuple([ast.Name(name, ast.Load()) for name in calls], ast.Load())], []))
-        loop.body.insert(0, ast.copy_location(wait, loop.body[0]))
-    ast.fix_missing_locations(tree)
+        first = loop.body[0]
+        for node in ast.walk(wait):     # the new nodes only, at the place of the loop's first statement
+            if isinstance(node, (ast.expr, ast.stmt)):
+                ast.copy_location(node, first)
+        loop.body.insert(0, wait)
+
+
+def _loops_in_functions(statements: list[ast.stmt], in_function: bool) -> Iterator[ast.While]:
+    """The `while` loops among `statements` and the statements inside them that lie in a function (a loop can only be
+    a statement, so expressions are never looked into)."""
+    for statement in statements:
+        inside = in_function or isinstance(statement, (ast.FunctionDef, ast.AsyncFunctionDef))
+        if isinstance(statement, ast.While) and in_function:
+            yield statement
+        for name in ("body", "orelse", "finalbody"):
+            block = getattr(statement, name, None)
+            if isinstance(block, list):
+                yield from _loops_in_functions(block, inside)
+        for part in (*getattr(statement, "handlers", ()), *getattr(statement, "cases", ())):
+            yield from _loops_in_functions(part.body, inside)
 
 
 def _shown(text: str, most: int = LOOP_TEXT) -> str:
@@ -129,21 +163,25 @@ def _empty(loop: ast.While) -> bool:
 
 
 def constants(path: str | Path) -> list[str]:
-    """The names a firmware file assigns at top level (`NAME = <expr>`): the ones `defines` can replace."""
+    """The names a firmware file assigns at top level (`NAME = <expr>`; in C, its `#define NAME <constant>`): the
+    ones `defines` can replace."""
     path = Path(path)
+    if is_c(path):
+        from appsim.firmware import c18
+        return c18.constants(path, read_firmware(path))
     return list(_assignments(_parse(path, read_firmware(path))))
 
 
 def read_firmware(path: Path) -> bytes:
     """The bytes of the firmware file at `path`, or a FirmwareError that says what is there instead."""
     if path.is_dir():
-        raise FirmwareError(f"{path} is a folder, not a firmware file: give the path of a .py file, such as "
+        raise FirmwareError(f"{path} is a folder, not a firmware file: give the path of a .py or .c file, such as "
                             "exercises/ex1.py")
     if not path.is_file():
         what = f"{path} is not a regular file" if path.exists() else f"there is no firmware file at {path}"
         near = _near(path)
         raise FirmwareError(f"{what}: " + (f"did you mean {path.parent / near}?" if near else
-                                           "give the path of a .py file such as exercises/ex1.py"))
+                                           "give the path of a .py or .c file such as exercises/ex1.py"))
     try:
         return path.read_bytes()
     except OSError as error:
@@ -218,9 +256,10 @@ def crash_message(error: BaseException, filename: str | None) -> str:
     report = traceback.TracebackException.from_exception(error, limit=-TRACEBACK_FRAMES)
     mine = [frame for frame in report.stack if filename is not None and frame.filename == filename]
     place = (f" at line {mine[-1].lineno} of {Path(mine[-1].filename).name} (`{mine[-1].line}`)" if mine else "")
-    what = _past_the_data(error, filename) or _as_python_words_it(error, report)
+    what = _in_c_words(error, filename) or _past_the_data(error, filename) or _as_python_words_it(error, report)
     who = _crashed_in(error, filename)
-    return f"{who} crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+    message = f"{who} crashed{place}: {what}\nThe board stopped there: nothing after that line ran."
+    return in_c18_words(message) if _is_c_file(filename) else message
 
 
 def _crashed_in(error: BaseException, filename: str | None) -> str:
@@ -250,6 +289,22 @@ def _as_python_words_it(error: BaseException, report: traceback.TracebackExcepti
         if found and "\n" not in suggestion:
             what += f". Did you mean: {suggestion}"
     return what
+
+
+def _in_c_words(error: BaseException, filename: str | None) -> str | None:
+    """For firmware translated from C, what went wrong as C would say it."""
+    if not _is_c_file(filename):
+        return None
+    from appsim.firmware import c18
+    return c18.describe(error)
+
+
+def _is_c_file(filename: str | None) -> bool:
+    """Whether `filename`'s code was translated from C (only once the translator has been loaded can it be)."""
+    if "appsim.firmware.c18" not in sys.modules:
+        return False
+    from appsim.firmware import c18
+    return c18.is_c_file(filename)
 
 
 _SUBSCRIPT = re.compile(r"\b([A-Za-z_]\w*)\[\s*(-?\w+)\s*\]")      # RxData[3], RxData[i]

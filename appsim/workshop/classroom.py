@@ -52,8 +52,9 @@ def _check_station(station: int, stations: int) -> None:
 class Classroom:
     """The master console and `stations` student boards on `bus`, each station running `ex{exercise}.py`.
 
-    The stations' files come from `firmware_dir` (the solutions by default), each loaded with its
-    station's MESSAGE_ID1 and RTR_ID (those the file assigns), as six students each edit their copy.
+    The stations' files come from `firmware_dir` (the solutions by default), `ex{exercise}.py` or with `language`
+    "c" `ex{exercise}.c`, each loaded with its station's MESSAGE_ID1 and RTR_ID (those the file assigns or
+    #defines), as six students each edit their copy.
     Potentiometers: `potentiometers` (one per station), else drawn from `random.Random(seed)` when a
     seed is given, else fixed distinct values. `monitor` puts the PC's CAN monitor on the bus (it ACKs
     every frame, see `pc_monitor_interface`). Nothing runs until the bus's simulator runs.
@@ -61,7 +62,8 @@ class Classroom:
 
     def __init__(self, bus: Bus, exercise: int, *, stations: int = STATIONS,
                  potentiometers: Sequence[int] | None = None, master_potentiometer: int = 512,
-                 firmware_dir: str | Path | None = None, seed: int | None = None, monitor: bool = True):
+                 firmware_dir: str | Path | None = None, seed: int | None = None, monitor: bool = True,
+                 language: str = "python"):
         if exercise not in CLASSROOM_EXERCISES:
             raise ValueError(f"exercise {exercise!r} does not exist: the workshop has EX1.C .. EX6.C (1..6)")
         if not isinstance(stations, int) or not 1 <= stations <= STATIONS:
@@ -75,7 +77,10 @@ class Classroom:
                              f"{len(potentiometers)} values")
         self.bus = bus
         self.exercise = exercise
-        self.firmware = Path(course.SOLUTIONS if firmware_dir is None else firmware_dir) / f"ex{exercise}.py"
+        if language not in ("python", "c"):
+            raise ValueError(f"the stations' firmware is in 'python' (exN.py) or 'c' (exN.c); got {language!r}")
+        self.firmware = (Path(course.SOLUTIONS if firmware_dir is None else firmware_dir)
+                         / f"ex{exercise}.{'c' if language == 'c' else 'py'}")
         self.master = APP023(bus, "master", potentiometer=master_potentiometer)
         self.master.run(load_firmware(course.MASTER_FIRMWARE))
         self.stations: dict[int, APP023] = {}

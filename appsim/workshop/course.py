@@ -16,6 +16,7 @@ EXERCISES: tuple[str, ...] = ("ex1", "ex2", "ex3", "ex4", "ex5", "ex6", "demo1")
 CLASSROOM_EXERCISES = range(1, 7)   # what the stations can run: EX1.C .. EX6.C
 EXERCISE_FILES: dict[str, str] = {**{f"ex{n}": f"ex{n}.py" for n in CLASSROOM_EXERCISES},
                                   "demo1": "demo1_monitor.py"}
+C_FILES: dict[str, str] = {exercise: name.removesuffix(".py") + ".c" for exercise, name in EXERCISE_FILES.items()}
 STATIONS = 6
 MASTER_ID = 0x088                   # the master console's broadcast, every 100 ms
 
@@ -62,11 +63,17 @@ def __getattr__(name: str) -> Path:
     return path
 
 
-def starter(exercise: object) -> Path:
-    """The starter file of an exercise, as students get it (exercises/ex3.py)."""
-    return __getattr__("STARTERS") / EXERCISE_FILES[exercise_name(exercise)]
+def starter(exercise: object, language: str = "python") -> Path:
+    """The starter file of an exercise, as students get it (exercises/ex3.py; in C, exercises/ex3.c)."""
+    return __getattr__("STARTERS") / _file(exercise, language)
 
 
-def solution(exercise: object) -> Path:
-    """The reference solution of an exercise (solutions/ex3.py), which the classroom's stations run."""
-    return __getattr__("SOLUTIONS") / EXERCISE_FILES[exercise_name(exercise)]
+def solution(exercise: object, language: str = "python") -> Path:
+    """The reference solution of an exercise (solutions/ex3.py, or .c), which the classroom's stations run."""
+    return __getattr__("SOLUTIONS") / _file(exercise, language)
+
+
+def _file(exercise: object, language: str) -> str:
+    if language not in ("python", "c"):
+        raise ValueError(f"the workshop's firmware is in 'python' or 'c'; got {language!r}")
+    return (C_FILES if language == "c" else EXERCISE_FILES)[exercise_name(exercise)]

@@ -13,7 +13,7 @@ if TYPE_CHECKING:
     from appsim.sim import Process
 
 # The kinds, as the gradebook's `fault` column names them (docs/grading.md explains each).
-KINDS = ("missing", "symlink", "unreadable", "load", "exception", "returned", "exited", "stalled",
+KINDS = ("missing", "symlink", "unreadable", "ambiguous", "load", "exception", "returned", "exited", "stalled",
          "time", "memory", "forbidden", "protocol", "grader")
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import base64
 import functools
 import html
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -26,7 +26,7 @@ from appsim.bus.signals import Signals
 from appsim.bus.wire import Bus, BusEvent
 from appsim.chip import usart
 from appsim.chip.usart import Sent
-from appsim.firmware.loader import load_source
+from appsim.firmware.loader import is_c, load_source
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop import checks, plots
 from appsim.workshop.checks import RUNS, CheckResult, Verdict
@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 CELL = "the firmware cell"          # how messages name the code a firmware cell wrote
+C_CELL = "the C firmware cell"      # ... and the code the C firmware cell wrote
 SEED = 202                          # the potentiometers of the other stations (yours and the master's are knobs)
 KNOB_SECONDS = 0.2                  # the classroom goes on this long after a knob is turned: two master broadcasts
 RESET_ON_TURN = {"ex1": "EX1 reads the potentiometer once, before its only frame: each turn also presses RESET, and "
@@ -54,7 +55,8 @@ T = TypeVar("T")
 # ---------------------------------------------------------------------------------------------------- the firmware cell
 def cell_that_wrote(path: Path, text: bytes) -> str | None:
     """The source of the cell that wrote `path` with `%%writefile` in this notebook's kernel, its first line made a
-    comment, if the file still holds what that cell wrote; else None (no kernel, or the file changed since)."""
+    comment (`#`, in C `//`), if the file still holds what that cell wrote; else None (no kernel, or the file changed
+    since)."""
     try:
         from IPython import get_ipython
     except ImportError:
@@ -66,16 +68,20 @@ def cell_that_wrote(path: Path, text: bytes) -> str | None:
         first, _, body = cell.partition("\n")
         words = first.split()
         if words[:1] == ["%%writefile"] and len(words) > 1 and Path(words[-1]).resolve() == path.resolve():
-            return f"# {first}\n{body}" if body.rstrip("\n") == text.decode("utf-8", "replace").rstrip("\n") else None
+            comment = "//" if is_c(path) else "#"
+            return (f"{comment} {first}\n{body}" if body.rstrip("\n") == text.decode("utf-8", "replace").rstrip("\n")
+                    else None)
     return None
 
 
 class FirmwareCell:
     """A firmware file as its notebook cell wrote it: lines are numbered as in the cell (the `%%writefile` line is line
-    1) and called "the firmware cell" in messages, as long as the file holds what the cell wrote."""
+    1) and called "the firmware cell" ("the C firmware cell") in messages, as long as the file holds what the cell
+    wrote. `c_options`: C18's options for a .c file (-Oi)."""
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, c_options: Sequence[str] = ()):
         self.path = Path(path)
+        self.c_options = tuple(c_options)
 
     def load(self) -> Firmware:
         if not self.path.is_file():
@@ -83,14 +89,20 @@ class FirmwareCell:
                                       f"%%writefile {self.path.name}, writes it)"))
         text = self.path.read_bytes()
         cell = cell_that_wrote(self.path, text)
+        language = "c" if is_c(self.path) else "python"
         if cell is None:
-            return loaded(lambda: load_source(self.path, text), str(self.path), str(self.path))
-        return loaded(lambda: load_source(CELL, cell.encode()), CELL, str(self.path))
+            return loaded(lambda: load_source(self.path, text, c_options=self.c_options), str(self.path),
+                          str(self.path))
+        name = C_CELL if language == "c" else CELL
+        return loaded(lambda: load_source(name, cell.encode(), language=language, c_options=self.c_options), name,
+                      str(self.path))
 
 
-def check(exercise: str | int, firmware: str | Path, *, seed: int | None = None) -> Verdict:
-    """`appsim.workshop.checks.check` on a firmware cell's file: the same verdict, its lines numbered as in the cell."""
-    return checks.check(exercise, FirmwareCell(firmware), seed=seed)
+def check(exercise: str | int, firmware: str | Path, *, seed: int | None = None,
+          c_options: Sequence[str] = ()) -> Verdict:
+    """`appsim.workshop.checks.check` on a firmware cell's file (.py, or .c: then with C18's `c_options`, such as
+    ("-Oi",)): the same verdict, its lines numbered as in the cell."""
+    return checks.check(exercise, FirmwareCell(firmware, c_options), seed=seed)
 
 
 # ---------------------------------------------------------------------------------------------------- what cells show
@@ -151,9 +163,10 @@ class Station:
     """
 
     def __init__(self, exercise: str | int, firmware: str | Path, *, seconds: float,
-                 potentiometer: int = 300, master: int = 512):
+                 potentiometer: int = 300, master: int = 512, c_options: Sequence[str] = ()):
         self.exercise = exercise_name(exercise)
         self.firmware = Path(firmware)
+        self.c_options = tuple(c_options)
         self.seconds = seconds
         self.potentiometer = potentiometer
         self.master = master
@@ -170,7 +183,7 @@ class Station:
         self.usb.clear()
         self.line.clear()
         try:
-            trial = checks.prepare(self.exercise, FirmwareCell(self.firmware), SEED)
+            trial = checks.prepare(self.exercise, FirmwareCell(self.firmware, self.c_options), SEED)
         except Fatal as fatal:
             self.fault = fatal.fault
             return

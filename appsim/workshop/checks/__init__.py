@@ -5,7 +5,7 @@ Only behaviour is judged (bus trace, ECAN registers, LCD, USB-CDC bytes), never 
 from __future__ import annotations
 
 import random
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import ModuleType
 
@@ -46,7 +46,7 @@ def refusal(exercise: str | int, firmware: str | Path) -> str | None:
         if path.suffix.lower() != ".ipynb":
             read_firmware(path)
             return None
-        named, _ = notebook_firmware(path)
+        named = notebook_firmware(path)[0]
     except FirmwareError as error:
         return str(error)
     if named is not None and named != name:
@@ -56,21 +56,24 @@ def refusal(exercise: str | int, firmware: str | Path) -> str | None:
 
 
 def prepare(exercise: str, firmware: str | Path | ModuleType | Callable[[], object] | Loadable, seed: int,
-            message_id: int | None = None) -> Trial:
+            message_id: int | None = None, c_options: Sequence[str] = ()) -> Trial:
     """The trial of `exercise` (as `exercise_name` gives it) for `firmware`, on the station `placement` picks (Demo1:
-    a board of its own); nothing runs yet. A firmware that does not load, or names no station's ID, is `Fatal`."""
-    loaded = resolve(firmware)
+    a board of its own); nothing runs yet. A firmware that does not load is `Fatal`. `c_options`: C18's options for
+    a .c file (-Oi)."""
+    loaded = resolve(firmware, c_options)
     return Trial(exercise, loaded, 1 if exercise == "demo1" else placement(exercise, loaded, message_id), seed)
 
 
 def check(exercise: str | int, firmware: str | Path | ModuleType | Callable[[], object] | Loadable | None = None,
-          *, seed: int | None = None, message_id: int | None = None) -> Verdict:
-    """Run `firmware` (a file, a loaded module, or a bare `main`; None: the starter exercises/exN.py) and judge it.
+          *, seed: int | None = None, message_id: int | None = None, c_options: Sequence[str] = ()) -> Verdict:
+    """Run `firmware` (a file, .py or .c, a loaded module, or a bare `main`; None: the starter exercises/exN.py) and
+    judge it.
 
     `seed` picks every potentiometer and anything else random (None: a fresh one, recorded in the
     verdict); the same seed gives the same verdict. The board takes the station of `message_id`, else
     of the firmware's MESSAGE_ID1 (Ex5: RTR_ID), else station 1; an identifier that is no station's takes station 1's
-    place, and only the checks that depend on it fail for it.
+    place, and only the checks that depend on it fail for it. `c_options`: C18's command-line options for a .c file
+    (`("-Oi",)`: integer promotions).
     """
     name = exercise_name(exercise)
     if seed is None:
@@ -80,7 +83,7 @@ def check(exercise: str | int, firmware: str | Path | ModuleType | Callable[[], 
     if message_id is not None and (not isinstance(message_id, int) or isinstance(message_id, bool)):
         raise TypeError(f"message_id is the station's MESSAGE_ID1, an integer such as 0x110; got {message_id!r}")
     try:
-        trial = prepare(name, starter(name) if firmware is None else firmware, seed, message_id)
+        trial = prepare(name, starter(name) if firmware is None else firmware, seed, message_id, c_options)
         results = _MODULES[name].run(trial)
     except Fatal as fatal:
         return not_judged(name, seed, fatal.fault.kind, fatal.fault.message)

@@ -25,9 +25,15 @@ ANSWER = "receives the master's answer"
 LCD = "LCD shows the master's A/D and RTR_ID"
 NAMES = (REQUESTS, PERIOD, ANSWER, LCD)
 SECONDS = 0.4                     # listen until ~50 ms, then six Timer1 overflows
-HOW = "CANSendMessage(RTR_ID, None, 0, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_RTR_FRAME)"
+HOW = "CANSendMessage(RTR_ID, {none}, 0, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_RTR_FRAME)"
+
 ANSWER_BYTES = 5                  # the master answers with 01 02 03 ADRESH ADRESL
 REQUEST_DLCS = (0, ANSWER_BYTES)  # the workshop's DataLen 0; CAN 2.0's advice: the DLC of the data frame asked for
+
+
+def how(trial: Trial) -> str:
+    """The call that sends the request, in the firmware's language (None or NULL)."""
+    return HOW.format(none=trial.firmware.says("None", "NULL"))
 
 
 def run(trial: Trial) -> list[CheckResult]:
@@ -49,7 +55,7 @@ def _requests(trial: Trial, mine) -> CheckResult:
                        "CANInitialize(4, 10, 8, 4, 3, ...)")
         elif not frame.remote:
             problem = (f"a data frame, not a remote transmission request: on TMR1_OVERFLOW do not send your data, "
-                       f"send {HOW} (see the TODO)")
+                       f"send {how(trial)} (see the TODO)")
         elif frame.can_id != rtr_id and trial.identity_problem:
             problem = f"it asks for {hex_id(frame.can_id)}, not for RTR_ID = {shown(rtr_id)}. {trial.identity_problem}"
         elif frame.can_id != rtr_id:
@@ -75,7 +81,7 @@ def _answer(trial: Trial) -> CheckResult:
                and not e.frame.remote]
     if not answers:
         return CheckResult(ANSWER, False, f"The master never sent {hex_id(trial.rtr_id)}: it answers only remote "
-                                          f"frames (RTR) for 0x81..0x86, with the same ID. Send {HOW}.")
+                                          f"frames (RTR) for 0x81..0x86, with the same ID. Send {how(trial)}.")
     missed = [e for e in answers if not took(trial.reception(e))]
     if missed:
         return CheckResult(ANSWER, False, f"{len(missed)} of the master's {count(len(answers), 'answer')} "

@@ -27,7 +27,11 @@ DATA = "ignores a faulty node's data frame with its own ID"
 NAMES = (ANSWERS, RXB1, SILENT, DATA)
 SECONDS = 0.17                    # the test node's frames from 65 ms, the master's first poll at ~100 ms
 ANSWER_WITHIN_PS = 2 * MS         # read RXB1, read the A/D, CANSendMessage: well under a millisecond
-RTR_TEST = "the test RX_ID2 == MESSAGE_ID1 and CANMessageFlag & CAN_RX_RTR_FRAME"
+RTR_TEST = "the test RX_ID2 == MESSAGE_ID1 {and} CANMessageFlag & CAN_RX_RTR_FRAME"
+
+
+def rtr_test(trial: Trial) -> str:
+    return RTR_TEST.format(**{"and": trial.firmware.says("and", "&&")})
 STANDARD, REMOTE = CAN_TX_MSG_FLAGS.CAN_TX_STD_FRAME, CAN_TX_MSG_FLAGS.CAN_TX_RTR_FRAME
 
 
@@ -97,7 +101,8 @@ def _answers(trial: Trial, polls, answers) -> CheckResult:
                    f"RX_Filter2..RX_Filter5 must equal MESSAGE_ID1 = {hex_id(trial.own_id)} (see the TODO)")
         else:
             why = (f"it went into {outcome}, but the node sent nothing back: after CANReceiveMessage() from RXB1, "
-                   f"if {RTR_TEST}, read the A/D and send MESSAGE_ID1 with 01 02 03 ADRESH ADRESL (see the TODO)")
+                   f"if {rtr_test(trial)}, read the A/D and send MESSAGE_ID1 with 01 02 03 ADRESH ADRESL "
+                   "(see the TODO)")
         return CheckResult(ANSWERS, False, f"{len(missed)} of {count(len(polls), 'RTR')} for {hex_id(trial.own_id)} "
                                            f"got no answer. The one from {poll.sender} at {ms(poll.start_ps)}: {why}.")
     content = data_frames(trial, ANSWERS, list(answers.values()))
@@ -138,7 +143,7 @@ def _silent(trial: Trial, unasked) -> CheckResult:
                "each request once")
     elif trigger is not None and trigger.frame.remote:
         why = (f"right after taking the RTR {hex_id(trigger.frame.can_id)} from {trigger.sender}, which asks for "
-               f"another node's data: answer only if {RTR_TEST}")
+               f"another node's data: answer only if {rtr_test(trial)}")
     else:
         why = ("without being asked: in Ex6 the node sends only to answer the master's RTR (no more sending on "
                "Timer1)")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import random
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -20,8 +20,9 @@ from appsim.chip.ecan.controller import ECAN
 from appsim.chip.mcu import PIC18F8680
 from appsim.errors import AppsimError, FirmwareError
 from appsim.firmware.identity import identity_of, shown
+from appsim.firmware.interrupts import in_c18_words
 from appsim.firmware.interrupts import routines as interrupt_routines
-from appsim.firmware.loader import load_firmware, load_source, read_firmware
+from appsim.firmware.loader import is_c, load_firmware, load_source, read_firmware
 from appsim.sim import PS_PER_SECOND, Simulator
 from appsim.workshop.classroom import Classroom
 from appsim.workshop.course import CLASSROOM_BIT_RATE, MASTER_ID, RTR_IDS, STATION_IDS, STATIONS
@@ -54,6 +55,15 @@ class Firmware:
     label: str
     identity: Mapping[str, int] = field(default_factory=dict)
     routines: Mapping[int, Callable[[], object]] = field(default_factory=dict)
+    language: str = "python"        # or "c": the language its messages quote code in
+
+    def says(self, python: str, c: str) -> str:
+        """A piece of code as the firmware's own language writes it."""
+        return c if self.language == "c" else python
+
+    def worded(self, fault: Fault) -> Fault:
+        """A fault of this firmware's run in its own language's words (C's `#pragma interrupt` for `@interrupt`)."""
+        return Fault(fault.kind, in_c18_words(fault.message)) if self.language == "c" else fault
 
 
 class Loadable(Protocol):
@@ -69,28 +79,38 @@ def loaded(load: Callable[[], ModuleType], filename: str, label: str) -> Firmwar
         module = load()
     except FirmwareError as error:
         raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-    return Firmware(module.main, filename, label, identity_of(module), interrupt_routines(module))
+    return Firmware(module.main, filename, label, identity_of(module), interrupt_routines(module),
+                    language_of(module))
 
 
-def notebook_firmware(path: Path) -> tuple[str | None, bytes]:
-    """The exercise a notebook names and the Python of its firmware cell, read as `appsim grade` reads it (IPython
-    magics made comments, so its lines are the cell's); FirmwareError if it has none or is no notebook."""
+def language_of(module: ModuleType) -> str:
+    return "c" if getattr(module, "__c18__", False) else "python"
+
+
+def notebook_firmware(path: Path) -> tuple[str | None, str, bytes]:
+    """The exercise a notebook names, and the file its firmware cells make (ex1.py, or ex1.c: the language its
+    FIRMWARE cell chooses) with their code, read as `appsim grade` reads it (IPython magics made comments, so its
+    lines are the cells'); FirmwareError if it has none or is no notebook."""
     from appsim.workshop.grading.submissions import firmware_from_notebook
 
     exercise, firmware = firmware_from_notebook(path.name, read_firmware(path))
     if isinstance(firmware, Fault):
         raise FirmwareError(firmware.message)
-    return exercise, firmware
+    return exercise, *firmware
 
 
-def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable) -> Firmware:
+def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable,
+            c_options: Sequence[str] = ()) -> Firmware:
     """The firmware as a runnable thing (a notebook's firmware cell for a .ipynb file); one that does not load is
-    `Fatal`, with its line."""
+    `Fatal`, with its line. `c_options` are C18's options for a .c file (or a notebook's C cell)."""
     if isinstance(firmware, (str, Path)):
         path = Path(firmware)
         if path.suffix.lower() == ".ipynb":
-            return loaded(lambda: load_source(path, notebook_firmware(path)[1]), str(path), str(path))
-        return loaded(lambda: load_firmware(path), str(path), str(path))
+            def from_notebook() -> ModuleType:
+                _, graded, source = notebook_firmware(path)
+                return load_source(path, source, language="c" if is_c(graded) else "python", c_options=c_options)
+            return loaded(from_notebook, str(path), str(path))
+        return loaded(lambda: load_firmware(path, c_options=c_options), str(path), str(path))
     if isinstance(firmware, ModuleType):
         if not callable(getattr(firmware, "main", None)):
             raise Fatal(Fault("load", f"{firmware.__name__} has no main(): a firmware defines `def main():` that "
@@ -101,10 +121,10 @@ def resolve(firmware: str | Path | ModuleType | Callable[[], object] | Loadable)
             routines = interrupt_routines(firmware)
         except FirmwareError as error:
             raise Fatal(Fault("load", f"the firmware does not load: {error}")) from None
-        return Firmware(firmware.main, filename, label, identity_of(firmware), routines)
+        return Firmware(firmware.main, filename, label, identity_of(firmware), routines, language_of(firmware))
     load = getattr(firmware, "load", None)
     if callable(load):
-        return load()
+        return load()               # it loads itself, with its own options
     if callable(firmware):
         code = getattr(firmware, "__code__", None)
         return Firmware(firmware, code.co_filename if code else None, f"{getattr(firmware, '__name__', 'main')}()")
@@ -255,7 +275,7 @@ class Trial:
         process = self.board.mcu.process
         assert process is not None, "the student's firmware was started in Trial.classroom"
         if process.failure is not None:
-            raise Fatal(fault_of(process.failure, self.firmware.filename))
+            raise Fatal(self.firmware.worded(fault_of(process.failure, self.firmware.filename)))
         if process.finished:
             raise Fatal(Fault("returned", f"main() returned (by {ms(self.now)}): firmware has nowhere to return to, "
                                           "so main() must loop forever (`while True:` around the work, as "

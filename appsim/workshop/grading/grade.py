@@ -45,7 +45,8 @@ from appsim.workshop.sandbox.children import BOOT_S, DEFAULT_LIMITS, Limits
 from appsim.workshop.sandbox.isolation import Isolation, isolation
 
 SLACK_S = 30.0                      # a worker may take this much longer than an exercise's own limits, then it is ended
-ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest first, so the workers finish together
+ORDER = ("demo1", *(e for e in EXERCISES if e != "demo1"))      # the longest first: the last submission's others
+#                                                                 may go to another worker, so the workers end together
 
 
 # ====================================================================== the command
@@ -78,7 +79,8 @@ def run(paths: Sequence[str | Path], *, results: Path | None = None, csv_path: P
                                                         or str(gradescope_path).endswith(("/", os.sep)))
         if gradescope is not None:
             check_output(gradescope, "the Gradescope output (--gradescope)", folder=gradescope_folder)
-        kit, commit = kit_version(), provenance.commit()
+        kit = kit_version() + "".join(f" {option}" for option in limits.c_options)   # C18's -Oi grades otherwise
+        commit = provenance.commit()
         book = ResultsFile(results)
         try:
             previous = book.records()
@@ -166,10 +168,11 @@ class _Worker:
         self.pid, self.stdin, self.stdout = start_worker(settings, self.log.fileno(), processor)
         self.status: int | None = None
         self.task: _Task | None = None
+        self.submission: Submission | None = None      # the one whose exercises it grades (its sandbox's)
         self.deadline = 0.0
 
     def give(self, task: _Task, seed: int, allowed_s: float, others_follow: bool) -> None:
-        self.task = task
+        self.task, self.submission = task, task.submission
         self.deadline = time.monotonic() + allowed_s
         self.stdin.write(task.line(seed, others_follow))
         self.stdin.flush()
@@ -244,7 +247,7 @@ class _Pool:
 
         def next_task(worker: _Worker) -> None:
             if waiting:
-                task = waiting.popleft()
+                task = _next_for(worker, waiting, [w.submission for w in self.workers if w is not worker])
                 worker.give(task, seed, allowed_s, bool(waiting) and waiting[-1].submission is not task.submission)
                 selector.register(worker.stdout, selectors.EVENT_READ, worker)
 
@@ -305,6 +308,18 @@ class _Pool:
 
     def _worker(self, index: int) -> _Worker:
         return _Worker(self.settings, self.processors[index % len(self.processors)] if self.processors else None)
+
+
+def _next_for(worker: _Worker, waiting: collections.deque[_Task], others: list[Submission | None]) -> _Task:
+    """The task `worker` takes next (removed from `waiting`): the next of the submission it grades, else the first of
+    one no other worker grades, else the first. A submission's exercises are graded in one worker, and so in one
+    sandbox: its sandbox boots once (and loads the C translator once), where two workers would boot one each."""
+    index = next((i for i, t in enumerate(waiting) if t.submission is worker.submission), None)
+    if index is None:
+        index = next((i for i, t in enumerate(waiting) if not any(t.submission is o for o in others)), 0)
+    task = waiting[index]
+    del waiting[index]
+    return task
 
 
 class Memory(NamedTuple):

@@ -31,7 +31,8 @@ def kit_version() -> str:
 
     content = hashlib.sha256()
     package = Path(appsim.__file__).resolve().parent
-    for path in sorted({*package.rglob("*.py"), *course.SOLUTIONS.glob("*.py")}):
+    for path in sorted({*package.rglob("*.py"), *package.rglob("*.h"), *course.SOLUTIONS.glob("*.py"),
+                        *course.SOLUTIONS.glob("*.c")}):
         content.update(path.relative_to(path.parents[1]).as_posix().encode() + b"\0" + path.read_bytes())
     return f"{appsim.__version__}+{content.hexdigest()[:12]}"
 

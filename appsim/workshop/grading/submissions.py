@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from appsim.errors import GradeError
-from appsim.workshop.course import EXERCISE_FILES, EXERCISES
+from appsim.workshop.course import C_FILES, EXERCISE_FILES, EXERCISES
 from appsim.workshop.faults import Fault
 from appsim.workshop.sandbox.protocol import MAX_SOURCE
 
@@ -33,9 +33,10 @@ MAX_MEMBERS = 10_000                # and how many files they hold
 MAX_ZIP_DEPTH = 3                   # a class zip, a student's folder in it holding a zip, and a zip in that
 MAX_FOLDER_DEPTH = 6                # folders searched below a student's entry
 MAX_NAME = 64                       # characters of a submission's name (longer: cut, with a digest)
-WHAT_A_SUBMISSION_IS = ("a submission is a folder holding any of ex1.py .. ex6.py and demo1_monitor.py (or Jupyter "
-                        "notebooks ex1.ipynb ... whose firmware cell has the tag `firmware`), or a .zip of one; a "
-                        "class is a folder (or a .zip) of submissions, as an LMS exports them")
+WHAT_A_SUBMISSION_IS = ("a submission is a folder holding any of ex1.py .. ex6.py and demo1_monitor.py (or in C ex1.c "
+                        ".. ex6.c and demo1_monitor.c, or Jupyter notebooks ex1.ipynb ... whose firmware cell has the "
+                        "tag `firmware`), or a .zip of one; a class is a folder (or a .zip) of submissions, as an LMS "
+                        "exports them")
 # LMS exports: Moodle names each student's folder (or each file) "Full Name_participant_assignsubmission_file_", then
 # the file's own name; Canvas names each file "lastfirst_userid_submissionid_file" ("_LATE" after the name if late,
 # and "-1", "-2" before the extension for a file handed in again under a name already used).
@@ -208,11 +209,11 @@ def find_submissions(paths: Sequence[str | Path]) -> list[Submission]:
         elif stat.S_ISREG(info.st_mode) and path.suffix.lower() == ".zip":
             upload = _Entry(own, own, read=functools.partial(_read_regular, path, MAX_ZIP))
             parts = _from_zip(upload, _decoded(path.stem), budget)
-        elif stat.S_ISREG(info.st_mode) and path.suffix.lower() in (".py", ".ipynb"):
+        elif stat.S_ISREG(info.st_mode) and path.suffix.lower() in (".py", ".c", ".ipynb"):
             entry = _Entry(own, own, read=functools.partial(_read_regular, path, _limit(path.name)))
             parts = [(_decoded(path.resolve().parent.name), [entry], own)]
         else:
-            raise GradeError(f"{path} is not a folder, a .zip, a .py or a .ipynb file: {WHAT_A_SUBMISSION_IS}")
+            raise GradeError(f"{path} is not a folder, a .zip, a .py, a .c or a .ipynb file: {WHAT_A_SUBMISSION_IS}")
         found += [(*part, budget) for part in parts]
     named = _unique([(name, origin) for name, _, origin, _ in found])
     return sorted((_submission(name, entries, origin, budget, note)
@@ -352,7 +353,9 @@ def _decoded(name: str | bytes) -> str:
 def _submission(name: str, entries: list[_Entry], origin: str, budget: _Budget, note: str = "") -> Submission:
     """A student's files: each exercise's file found in their entries (the one nearest the top; two as near are that
     exercise's fault), read bounded; notebooks give their firmware cells. An entry that cannot be read at all (a
-    broken zip, a link) is the fault of every exercise not found elsewhere; a refused member is named."""
+    broken zip, a link) is the fault of every exercise not found elsewhere; a refused member is named. An exercise
+    handed in in both languages as near the top (ex1.py and ex1.c) is graded from neither: which one the student
+    meant is not for the grader to guess (`ambiguous`)."""
     found = _Found()
     for entry in entries:
         _search(entry, 0, budget, found)
@@ -361,6 +364,9 @@ def _submission(name: str, entries: list[_Entry], origin: str, budget: _Budget, 
     for exercise, candidates in found.exercises.items():
         candidates.sort(key=lambda pair: pair[0])
         nearest = [e for depth, e in candidates if depth == candidates[0][0]]
+        if len({_canonical(exercise, e.name) for e in nearest}) > 1:
+            problems[exercise] = _both(exercise, sorted(_inside(e) for e in nearest))
+            continue
         if len(nearest) > 1:
             problems[exercise] = Fault("unreadable", f"two files for {exercise} in this submission ("
                                                      f"{' and '.join(_inside(e) for e in nearest)}): hand in one")
@@ -371,18 +377,18 @@ def _submission(name: str, entries: list[_Entry], origin: str, budget: _Budget, 
             continue
         data = _bytes(entry, problems, exercise)
         if data is not None:
-            files[exercise] = (EXERCISE_FILES[exercise], data)
+            files[exercise] = (_canonical(exercise, entry.name), data)
     for _, notebook in sorted(found.notebooks, key=lambda pair: pair[0]):
         data = _bytes(notebook, problems, _exercise_of(notebook.name))
         if data is None:
             continue
         named, firmware = firmware_from_notebook(notebook.name, data)
-        if named is None or named in files:
-            continue                        # not an exercise's notebook; or the .py handed in next to it wins
+        if named is None or named in files or problems.get(named, _NONE).kind == "ambiguous":
+            continue                        # not an exercise's notebook; or the file handed in next to it wins
         if isinstance(firmware, Fault):
             problems.setdefault(named, firmware)
         else:
-            files[named] = (EXERCISE_FILES[named], firmware)
+            files[named] = firmware
             problems.pop(named, None)
     for exercise in files:
         problems.pop(exercise, None)
@@ -394,9 +400,23 @@ def _submission(name: str, entries: list[_Entry], origin: str, budget: _Budget, 
         if found.whole is not None:
             problems[exercise] = found.whole
         elif refused:
-            problems[exercise] = Fault("missing", f"{EXERCISE_FILES[exercise]} is missing from this submission: "
-                                                  f"nothing to grade for {exercise} ({refused})")
+            problems[exercise] = Fault("missing", f"{EXERCISE_FILES[exercise]} is missing from this submission (and "
+                                                  f"{C_FILES[exercise]}, its C twin): nothing to grade for {exercise} "
+                                                  f"({refused})")
     return Submission(name, files, problems, origin, note)
+
+
+_NONE = Fault("missing", "")
+
+
+def _both(exercise: str, names: list[str]) -> Fault:
+    return Fault("ambiguous", f"{' and '.join(names)} were both handed in for {exercise}: one exercise is graded from "
+                              "one firmware, in Python or in C, so neither is graded. Hand in the one you mean.")
+
+
+def _canonical(exercise: str, name: str) -> str:
+    """The exercise's file name as graded, by the language of `name`: ex1.py, or ex1.c."""
+    return C_FILES[exercise] if name.lower().endswith(".c") else EXERCISE_FILES[exercise]
 
 
 @dataclass
@@ -456,10 +476,11 @@ def _bytes(entry: _Entry, problems: dict[str, Fault], exercise: str | None) -> b
 
 
 def _exercise_of(name: str) -> str | None:
-    """The exercise a file is for, by its name: ex1.py .. ex6.py, demo1_monitor.py (notebooks: see their metadata)."""
+    """The exercise a file is for, by its name: ex1.py .. ex6.py, demo1_monitor.py, their .c twins (notebooks: see
+    their metadata)."""
     lowered = name.lower()
     for exercise, file_name in EXERCISE_FILES.items():
-        if lowered in (file_name, file_name.removesuffix(".py") + ".ipynb"):
+        if lowered in (file_name, C_FILES[exercise], file_name.removesuffix(".py") + ".ipynb"):
             return exercise
     return None
 
@@ -469,10 +490,14 @@ def _may_hold_exercise(name: str) -> bool:
     return _exercise_of(name) is not None or name.lower().endswith(".ipynb")
 
 
-def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, bytes | Fault]:
-    """The exercise of a notebook (its metadata {"appsim": {"exercise": ...}}, else its name) and the Python of its
-    cells tagged `firmware` (IPython magics such as `%%writefile ex1.py` become comments), or why there is none. The
-    cells are held to the size of a firmware file."""
+def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, tuple[str, bytes] | Fault]:
+    """The exercise of a notebook (its metadata {"appsim": {"exercise": ...}}, else its name) and its firmware: the
+    code of its cells tagged `firmware` (`firmware-c` for the C cell; IPython magics such as `%%writefile ex1.py`
+    become comments), as the file it would be (ex1.py, or ex1.c), or why there is none. The cells are held to the
+    size of a firmware file.
+
+    A notebook with a firmware cell in each language grades the one its `FIRMWARE = "ex1.c"` cell names (the file
+    its Station and check cells run); without that choice, the Python one."""
     exercise = _exercise_of(name)
     try:
         notebook = json.loads(data)
@@ -480,23 +505,53 @@ def firmware_from_notebook(name: str, data: bytes) -> tuple[str | None, bytes | 
         named = notebook.get("metadata", {}).get("appsim", {}).get("exercise")
         if named in EXERCISES:
             exercise = named
-        sources = []
+        by_language: dict[str, list[str]] = {}
+        chosen = None
         for cell in cells:
-            if cell.get("cell_type") == "code" and "firmware" in cell.get("metadata", {}).get("tags", []):
-                source = cell.get("source", "")
-                source = "".join(source) if isinstance(source, list) else str(source)
-                sources.append("\n".join(f"# {line}" if line.lstrip().startswith(("%", "!")) else line
-                                         for line in source.splitlines()))
+            if cell.get("cell_type") != "code":
+                continue
+            source = cell.get("source", "")
+            source = "".join(source) if isinstance(source, list) else str(source)
+            if {"firmware", "firmware-c"} & set(cell.get("metadata", {}).get("tags", [])):
+                language = _cell_language(source)
+                comment = "//" if language == "c" else "#"
+                by_language.setdefault(language, []).append("\n".join(
+                    f"{comment} {line}" if line.lstrip().startswith(("%", "!")) else line
+                    for line in source.splitlines()))
+            else:
+                chosen = _firmware_choice(source) or chosen
     except (ValueError, KeyError, TypeError, AttributeError, RecursionError):
         return exercise, Fault("unreadable", f"{name} is not a Jupyter notebook that can be read")
-    if not sources:
+    if not by_language:
         return exercise, Fault("missing", f"{name} has no code cell tagged `firmware`: the notebook's firmware cell "
                                           "carries that tag (View > Cell Toolbar > Tags in Jupyter)")
-    firmware = ("\n\n".join(sources) + "\n").encode("utf-8", "surrogatepass")    # a lone surrogate: a load error
+    language = chosen if chosen in by_language else "python" if "python" in by_language else next(iter(by_language))
+    # a lone surrogate passes here, and is the load error of the firmware
+    firmware = ("\n\n".join(by_language[language]) + "\n").encode("utf-8", "surrogatepass")
     if len(firmware) > MAX_SOURCE:
-        return exercise, Fault("unreadable", f"the firmware cells of {name} are {_size(len(firmware))} of Python: "
-                                             f"{_too_big()}")
-    return exercise, firmware
+        return exercise, Fault("unreadable", f"the firmware cells of {name} are {_size(len(firmware))} of "
+                                             f"{'C' if language == 'c' else 'Python'}: {_too_big()}")
+    suffix = ".c" if language == "c" else ".py"
+    graded = ((C_FILES if language == "c" else EXERCISE_FILES)[exercise] if exercise is not None
+              else Path(name).stem + suffix)
+    return exercise, (graded, firmware)
+
+
+def _cell_language(source: str) -> str:
+    """The language of a firmware cell: C if its `%%writefile` writes a .c file."""
+    first = source.lstrip().split("\n", 1)[0].split()
+    return "c" if first[:1] == ["%%writefile"] and first[-1].lower().endswith(".c") else "python"
+
+
+def _firmware_choice(source: str) -> str | None:
+    """The language a cell's `FIRMWARE = "ex1.c"` (a plain string, read without running anything) chooses."""
+    for line in source.splitlines():
+        words = line.split("#", 1)[0].split("=", 1)
+        if len(words) == 2 and words[0].strip() == "FIRMWARE":
+            value = words[1].strip()
+            if len(value) > 2 and value[0] == value[-1] and value[0] in "'\"":
+                return "c" if value[1:-1].lower().endswith(".c") else "python"
+    return None
 
 
 # ====================================================================== reading

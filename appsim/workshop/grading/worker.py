@@ -15,7 +15,7 @@ import sys
 import traceback
 from typing import IO, TYPE_CHECKING, Any, NamedTuple
 
-from appsim.workshop.course import EXERCISE_FILES
+from appsim.workshop.course import C_FILES, EXERCISE_FILES
 from appsim.workshop.faults import Fault
 from appsim.workshop.sandbox.children import Limits, Sandbox
 from appsim.workshop.sandbox.isolation import Isolation
@@ -129,8 +129,12 @@ def grade_exercise(sandbox: Sandbox, exercise: str, name: str, source: bytes | N
 
     if source is None:
         fault = Fault(**problem) if problem else Fault(
-            "missing", f"{EXERCISE_FILES[exercise]} is missing from this submission: nothing to grade for {exercise}")
+            "missing", f"{EXERCISE_FILES[exercise]} is missing from this submission (and {C_FILES[exercise]}, its C "
+                       f"twin): nothing to grade for {exercise}")
         return exercise_record(not_judged(exercise, seed, fault.kind, fault.message))
+    if name.lower().endswith(".c") and sandbox.c_state is None:
+        from appsim.firmware import c18  # the kit's own headers, parsed here once: every later sandbox adopts them
+        sandbox.expect_c(c18.header_state(sandbox.limits.c_options))
     firmware = SandboxedFirmware(sandbox, name, source, sandbox.limits, owner=owner, spare=spare)
     try:
         verdict = check(exercise, firmware, seed=seed)

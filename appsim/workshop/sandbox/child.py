@@ -11,7 +11,7 @@ import importlib
 import json
 import os
 import resource
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -263,6 +263,24 @@ def boot() -> None:
     importlib.import_module("appsim.can.slcan")
 
 
+def boot_c(options: Sequence[str] = (), state: bytes | None = None) -> bool:
+    """Load the C translator and know the kit's headers (from `state`, which the grader made from them, else parsed
+    here), once, before the first C firmware is forked: a submission in C pays for them once, one in Python never.
+    Whether it loaded them now."""
+    global _c_booted
+    if _c_booted:
+        return False
+    c18 = importlib.import_module("appsim.firmware.c18")
+    if state is not None:
+        c18.adopt(state)
+    c18.warm(options)                   # with the state: nothing left to do
+    _c_booted = True
+    return True
+
+
+_c_booted = False
+
+
 def main(settings: dict[str, Any], read_fd: int, write_fd: int) -> None:
     """One firmware's life in a fresh process: walled in, it says hello, receives its firmware, loads it, says what
     it calls itself, and runs main() when told. `settings` holds the limits and the seccomp filter (if any)."""
@@ -281,7 +299,7 @@ def main(settings: dict[str, Any], read_fd: int, write_fd: int) -> None:
     mcu = RemoteMCU(channel)
     RUNNING_MCU.set(mcu)
     try:
-        module = load_source(path, source)
+        module = load_source(path, source, c_options=settings.get("c_options", ()))
     except FirmwareError as error:
         mcu.report(wire.LOAD_FAILED, str(error))
         return

@@ -40,6 +40,7 @@ class Limits:
     memory_mb: int = 256
     file_mb: int = 16
     wall_time_s: float | None = None
+    c_options: tuple[str, ...] = ()         # not a limit: C18's command-line options (-Oi) a .c firmware is built with
 
     WALL_PER_CPU: ClassVar[int] = 10
 
@@ -48,6 +49,7 @@ class Limits:
         return self.wall_time_s if self.wall_time_s is not None else self.WALL_PER_CPU * self.time_s
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "c_options", tuple(self.c_options))     # from JSON, a list
         if not (self.time_s > 0 and self.stall_s > 0 and self.memory_mb > 0 and self.file_mb > 0 and self.wall_s > 0):
             raise ValueError(f"sandbox limits are positive numbers; got {self}")
 
@@ -57,12 +59,27 @@ DEFAULT_LIMITS = Limits()
 
 # ====================================================================== one submission's sandbox
 
+def _memory_file(data: bytes) -> int:
+    """A file descriptor from which `data` reads (a memfd where Linux has them, else a pipe small data fits in)."""
+    if hasattr(os, "memfd_create"):
+        descriptor = os.memfd_create("appsim-kit-headers")
+        view = memoryview(data)
+        while view:
+            view = view[os.write(descriptor, view):]
+        os.lseek(descriptor, 0, os.SEEK_SET)
+        return descriptor
+    read, write = os.pipe()
+    os.write(write, data)
+    os.close(write)
+    return read
+
+
 class Zygote:
     """One submission's sandbox: a sandboxed Python process that booted once (see `zygote`) and forks a fresh child for
     each of that submission's exercises. The grader's end of its control socket; `expires_at` ends it if it does not
     boot in time."""
 
-    def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog):
+    def __init__(self, isolation: Isolation | None, limits: Limits, watchdog: Watchdog, c_state: bytes | None = None):
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         self.control = ours
         self.limits = limits
@@ -70,10 +87,14 @@ class Zygote:
         self.cpu_limit_s = int(limits.time_s) + 2   # each child's RLIMIT_CPU (SIGXCPU); SIGKILL a second later
         settings = {"memory_mb": limits.memory_mb, "file_mb": limits.file_mb, "cpu_s": self.cpu_limit_s,
                     "seccomp": seccomp_program().hex() if self.isolated else "", "control_fd": theirs.fileno(),
-                    "path": import_path() if isolation is None else list(isolation.path)}
+                    "path": import_path() if isolation is None else list(isolation.path),
+                    "c_options": list(limits.c_options)}
+        passed = [theirs.fileno()]
+        if c_state is not None:         # the kit headers' state (grader-made, trusted): the zygote loads C at boot
+            state_fd = settings["c_state_fd"] = _memory_file(c_state)
+            passed.append(state_fd)
         python = sys.executable if isolation is None else isolation.executable
         argv = [python, "-I", "-S", "-B", "-c", BOOT, json.dumps(settings)]
-        passed = [theirs.fileno()]
         if isolation is not None:
             read, write = os.pipe()
             os.write(write, seccomp_program(may_fork=True))
@@ -107,12 +128,13 @@ class Zygote:
         self.watchdog.forget(self)
         return hello and not self.expired
 
-    def fork(self, deadline: float) -> Child | None:
-        """A fresh child for one exercise, None if this sandbox forks no more (it ended, or does not answer)."""
+    def fork(self, deadline: float, c: bool = False) -> Child | None:
+        """A fresh child for one exercise (`c`: for a C firmware), None if this sandbox forks no more (it ended, or does
+        not answer)."""
         from_grader, to_child = os.pipe()
         from_child, to_grader = os.pipe()
         try:
-            socket.send_fds(self.control, [wire.FORK], [from_grader, to_grader])
+            socket.send_fds(self.control, [wire.FORK_C if c else wire.FORK], [from_grader, to_grader])
             reply = self._answer(time.monotonic() + FORK_S)
         except OSError:
             reply = None
@@ -383,11 +405,12 @@ class Sandbox:
         self._spare: Zygote | None = None
         self._zygote: Zygote | None = None
         self._owner: object = None
+        self.c_state: bytes | None = None   # once a C firmware came: the kit headers' state, for every sandbox after
 
-    def take(self, deadline: float, owner: object = None, *, spare: bool = False) -> Child:
+    def take(self, deadline: float, owner: object = None, *, spare: bool = False, c: bool = False) -> Child:
         """A fresh child for one exercise of submission `owner`, in that submission's sandbox (booted now, or while the
-        one before was graded); `spare` starts the next submission's sandbox booting. SandboxUnavailable if none will
-        boot."""
+        one before was graded); `spare` starts the next submission's sandbox booting; `c`: for a C firmware.
+        SandboxUnavailable if none will boot."""
         problem = ""
         for _ in range(BOOT_ATTEMPTS):
             if self._zygote is None or self._owner != owner or self._zygote.process.poll() is not None:
@@ -396,7 +419,7 @@ class Sandbox:
                     if time.monotonic() >= deadline:
                         break
                     continue
-            child = self._zygote.fork(deadline)
+            child = self._zygote.fork(deadline, c)
             if child is not None and child.ready(deadline):
                 return child
             problem = child.why_not() if child is not None else "its sandbox ended"
@@ -425,8 +448,14 @@ class Sandbox:
         if self._spare is None:
             self._spare = self._zygote_()
 
+    def expect_c(self, c_state: bytes) -> None:
+        """C firmware is being graded: sandboxes booted from now on load the C translator and `c_state`, the kit
+        headers' state (`appsim.firmware.c18.header_state`), at boot (a spare boots while the submission before it is
+        graded), so that none parses the headers itself."""
+        self.c_state = c_state
+
     def _zygote_(self) -> Zygote:
-        return Zygote(self.isolation, self.limits, self.watchdog)
+        return Zygote(self.isolation, self.limits, self.watchdog, self.c_state)
 
     def close(self) -> None:
         for zygote in (self._spare, self._zygote):

@@ -85,7 +85,8 @@ class SandboxedFirmware:
     # -------------------------------------------------------------- loading (checks.trial.Loadable)
     def load(self) -> Firmware:
         try:
-            child = self._child = self.sandbox.take(self.deadline, self.owner, spare=self.spare)
+            child = self._child = self.sandbox.take(self.deadline, self.owner, spare=self.spare,
+                                                    c=self.name.lower().endswith(".c"))
         except SandboxUnavailable as error:
             raise Fatal(self._ends(Fault("grader", str(error)))) from None
         child.channel.send(wire.source_message(self.name, self.source))
@@ -96,7 +97,8 @@ class SandboxedFirmware:
         try:
             if kind == wire.LOADED:
                 routines = {vector: functools.partial(self._routine, vector) for vector in wire.VECTORS}
-                return Firmware(self._main, None, self.name, wire.decode_identity(data), routines)
+                return Firmware(self._main, None, self.name, wire.decode_identity(data), routines,
+                                "c" if self.name.lower().endswith(".c") else "python")
             if kind == wire.LOAD_FAILED:
                 raise Fatal(self._ends(Fault("load", f"the firmware does not load: {wire.decode_text(data)}")))
             ended = self._ending(kind, data)

@@ -25,7 +25,8 @@ SYSTEM_LINKS = ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32")    # mer
 SYSTEM_FILES = ("/etc/ld.so.cache", "/etc/localtime")
 PROBE_S = 60.0
 # The probe: a Python like the zygote's boots as a zygote does (`child.boot`, the one place that says what the firmware
-# library loads) and says what it imported and what it mapped. The libraries the runtime's extension modules need are
+# library loads, and `child.boot_c`, what a C firmware adds: the translator, pcpp, pycparser, the kit's headers) and
+# says what it imported and what it mapped. The libraries the runtime's extension modules need are
 # read from their ELF headers, as the dynamic loader would find them (`_needed_folders`).
 PROBE = ("import json, sys; runtime = list(sys.path); sys.path[:0] = json.loads(sys.argv[1]); "
          "from appsim.workshop.sandbox.mounts import probe; probe(runtime)")
@@ -98,10 +99,11 @@ def layout(started: subprocess.Popen[str], secrets: Iterable[Path] = ()) -> Layo
 
 
 def probe(runtime: list[str]) -> None:
-    """In the probe's process: boot as a zygote does, say what it imported and what it mapped."""
+    """In the probe's process: boot as a zygote does (for a C firmware too), say what it imported and what it mapped."""
     from appsim.workshop.sandbox import child
 
     child.boot()
+    child.boot_c()
     modules = sorted({file for module in list(sys.modules.values())
                       if isinstance(file := getattr(module, "__file__", None), str)})
     with open("/proc/self/maps") as maps:

@@ -56,9 +56,11 @@ MAX_LOOP = 1024                     # bytes of an IDLE item's loop ("line 12 of 
 # (SCM_RIGHTS), answered FORKED pid:i32 (as the sandbox numbers it); ENDED pid:i32 status:i32 cpu_s:f64 when a child
 # ended (a signal as a negative status). HELLO once booted.
 FORK, FORKED, ENDED = b"F", b"K", b"E"
+FORK_C = b"C"       # FORK for a C firmware: the zygote loads the C translator and the kit's headers first, once
 FORKED_MESSAGE = struct.Struct("<ci")
 ENDED_MESSAGE = struct.Struct("<ciid")
 MAX_CONTROL = 32
+MAX_STATE = 16 << 20                # the kit headers' state a zygote may be handed at boot (about 50 kB)
 
 WRITE_ITEM = struct.Struct("<cHB")
 SERVED_ITEM = struct.Struct("<cHqB")

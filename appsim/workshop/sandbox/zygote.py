@@ -1,11 +1,14 @@
 """One submission's sandbox, inside: a process that loaded the firmware library once and forks a fresh child for each
 of that submission's exercises, so a firmware starts in milliseconds where booting Python takes a tenth of a second.
 
-It runs no firmware itself. The grader asks on the control socket (FORK, with the child's two pipe ends); it answers
-FORKED with the child's number, and ENDED with how a child ended (its status and CPU time) once it has.
+It runs no firmware itself. The grader asks on the control socket (FORK, with the child's two pipe ends; FORK_C for a C
+firmware, which first loads the C translator and the kit's headers, once per sandbox, unless it did at boot from the
+headers' state the grader handed it); it answers FORKED with the child's number, and ENDED with how a child ended (its
+status and CPU time) once it has.
 """
 from __future__ import annotations
 
+import gc
 import json
 import os
 import select
@@ -15,7 +18,17 @@ import sys
 from typing import Any
 
 from appsim.workshop.sandbox import child
-from appsim.workshop.sandbox.protocol import ENDED, ENDED_MESSAGE, FORK, FORKED, FORKED_MESSAGE, HELLO, MAX_CONTROL
+from appsim.workshop.sandbox.protocol import (
+    ENDED,
+    ENDED_MESSAGE,
+    FORK,
+    FORK_C,
+    FORKED,
+    FORKED_MESSAGE,
+    HELLO,
+    MAX_CONTROL,
+    MAX_STATE,
+)
 
 
 def main(settings: dict[str, Any]) -> None:
@@ -29,6 +42,9 @@ def main(settings: dict[str, Any]) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)        # Ctrl-C is the grader's
     _not_dumpable()
     child.boot()
+    if "c_state_fd" in settings:        # the grader's (the kit's own headers): read, and closed before any child
+        child.boot_c(settings["c_options"], _read_all(settings["c_state_fd"]))
+    gc.freeze()                         # what the children inherit is never collected there: not touched, not copied
     ended_r, ended_w = os.pipe()
     os.set_blocking(ended_w, False)
     signal.set_wakeup_fd(ended_w)
@@ -47,7 +63,10 @@ def main(settings: dict[str, Any]) -> None:
                 message, fds = FORK, []
             if not message:
                 return                  # the grader is done with this submission
-            pid = _fork(settings, fds, keep={control_fd, ended_r, ended_w}) if message == FORK and len(fds) == 2 else 0
+            if message == FORK_C and child.boot_c(settings["c_options"]):
+                gc.freeze()             # once: this child and every later one start with the headers parsed
+            pid = (_fork(settings, fds, keep={control_fd, ended_r, ended_w})
+                   if message in (FORK, FORK_C) and len(fds) == 2 else 0)
             for fd in fds:
                 os.close(fd)
             control.send(FORKED_MESSAGE.pack(FORKED, pid))
@@ -76,6 +95,18 @@ def _child(settings: dict[str, Any], fds: list[int], keep: set[int]) -> None:
         status = 0
     finally:
         os._exit(status)
+
+
+def _read_all(descriptor: int, most: int = MAX_STATE) -> bytes:
+    chunks, size = [], 0
+    while size <= most:
+        chunk = os.read(descriptor, 1 << 16)
+        if not chunk:
+            break
+        chunks.append(chunk)
+        size += len(chunk)
+    os.close(descriptor)
+    return b"".join(chunks)
 
 
 def _report_ended(control: socket.socket) -> None:

@@ -1,0 +1,262 @@
+"""The C preprocessor of a firmware file (pcpp), walled in: #include finds the kit's headers and nothing else, and
+every way to make it run away (a macro bomb, a huge expansion, deep includes) ends in a named error within limits.
+
+A kit header is preprocessed once per process; a file that includes it gets its macros and nothing of its text (the
+translator knows its declarations already). `-D` names replace the file's own #define of them.
+"""
+from __future__ import annotations
+
+import importlib
+import io
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from pcpp import preprocessor as pcpp
+
+from appsim.errors import CCompileError
+from appsim.firmware.c18 import headers
+
+MAX_OUTPUT_CHARS = 1_000_000        # the preprocessed file (the workshop's biggest, Demo1, is about 20 kB)
+MAX_EXPANDED_TOKENS = 200_000       # tokens the file's macro expansions add, in all
+MAX_MACRO_DEPTH = 64                # macros expanding macros
+MAX_INCLUDE_DEPTH = 8
+# C18's predefined macros (its User's Guide, 2.10), and fixed __DATE__/__TIME__: the kit is deterministic.
+PREDEFINED = {"__18CXX": "1", "__18F8680": "1", "__SMALL__": "1", "__TRADITIONAL18__": "1",
+              "__DATE__": '"Jan  1 2026"', "__TIME__": '"00:00:00"'}
+
+
+@dataclass
+class Preprocessed:
+    """A file preprocessed: its text (line markers included), the kit headers it included, and its own object-like
+    #defines (name -> replacement text, line) in the order it made them."""
+
+    text: str
+    headers: list[str]
+    defines: dict[str, tuple[str, int]] = field(default_factory=dict)
+    expanded: dict[str, str] = field(default_factory=dict)      # each of `defines`, fully expanded at the end
+
+
+@dataclass(frozen=True)
+class _Header:
+    macros: dict[str, Any]
+    includes: tuple[str, ...]       # itself and the kit headers it includes
+    text: str                       # its declarations, preprocessed (those of the headers it includes are theirs)
+
+
+_HEADERS: dict[tuple[str, bool], _Header] = {}
+
+
+class _Walled(pcpp.Preprocessor):
+    """pcpp with its includes, errors and growth under the kit's control."""
+
+    def __init__(self, filename: str, deadline: float, locked: Mapping[str, int] = {}):
+        super().__init__()
+        self.filename = filename
+        self.deadline = deadline
+        self.locked = dict(locked)
+        self.included: list[str] = []
+        self.own_defines: dict[str, tuple[str, int]] = {}
+        self.expanded = 0
+        self.line_directive = "#line"
+        self.rewrite_paths: list[tuple[str, str]] = []      # pcpp shortens paths under the working folder
+        for name in ("__PCPP__", "__DATE__", "__TIME__"):
+            self.macros.pop(name, None)
+        for name, text in PREDEFINED.items():
+            self.define(f"{name} {text}")
+        for name, value in locked.items():
+            self.define(f"{name} {_literal(value)}")
+
+    def fail(self, line: int, message: str) -> None:
+        raise CCompileError(message, self.filename, line)
+
+    def parse(self, input: str, source: str | None = None, ignore: Any = None) -> None:
+        """As pcpp's, but the file keeps the name it is given (pcpp would make it absolute): tokens, #line markers
+        and every message name it so."""
+        self.ignore = ignore or {}
+        self.parser = self.parsegen(input, source, source)
+
+    # -------------------------------------------------------------- pcpp's hooks
+    def on_error(self, file: str, line: int, msg: str) -> None:
+        self.fail(line, f"{msg} (the preprocessor)")
+
+    def on_directive_unknown(self, directive: Any, toks: Any, ifpassthru: Any, precedingtoks: Any) -> Any:
+        name = directive.value
+        text = "".join(t.value for t in toks).strip()
+        if name == "error":
+            self.fail(directive.lineno, f"#error {text}")
+        if name == "warning":
+            return True
+        if name == "pragma":
+            return None                 # the translator reads it
+        self.fail(directive.lineno, f"#{name} is not a preprocessor directive")
+        return True
+
+    def on_comment(self, tok: Any) -> bool:
+        return False
+
+    def on_include_not_found(self, is_malformed: bool, is_system_include: bool, curdir: str,
+                             includepath: str) -> None:
+        self.fail(0, f"#include {includepath}: not found")
+
+    # -------------------------------------------------------------- includes: the kit's headers only
+    def include(self, tokens: Any, original_line: Any) -> Any:
+        line = tokens[0].lineno if tokens else 0
+        if not tokens:
+            self.fail(line, "#include names no file: #include <p18f8680.h> or #include \"CAN18XX8.h\"")
+        if tokens[0].value == "<":
+            name = "".join(t.value for t in tokens[1:]).rstrip()
+            name = name[:-1] if name.endswith(">") else name
+        elif tokens[0].type == self.t_STRING:
+            name = tokens[0].value[1:-1]
+        else:
+            name = "".join(t.value for t in tokens)
+        known = headers.canonical(name)
+        if known is None:
+            self.fail(line, f"#include {name!r}: the kit's C includes only its own headers "
+                            f"({', '.join(headers.HEADERS)}); a firmware is one .c file, and no other file of this "
+                            "computer is read")
+        assert known is not None
+        if len(self.included) >= MAX_INCLUDE_DEPTH * 4:
+            self.fail(line, "too many #includes")
+        if known not in self.included:
+            header = kit_header(known, declarations=False)
+            for each in header.includes:
+                if each not in self.included:
+                    self.included.append(each)
+            self.macros.update((n, m) for n, m in header.macros.items() if n not in self.locked)
+        return iter(())
+
+    # -------------------------------------------------------------- defines: -D wins; the file's own are kept
+    def define(self, tokens: Any) -> None:
+        if isinstance(tokens, str):
+            super().define(tokens)
+            return
+        words = [t for t in tokens if t.type not in self.t_WS]
+        name = words[0].value if words else ""
+        source = getattr(words[0], "source", None) if words else None
+        if name in self.locked and source == self.filename:
+            self.own_defines[name] = (_literal(self.locked[name]), words[0].lineno)
+            return
+        super().define(tokens)
+        if name in self.macros and self._expanded_size(name, set()) > MAX_EXPANDED_TOKENS:
+            self.fail(words[0].lineno, f"#define {name} expands to more than {MAX_EXPANDED_TOKENS:,} tokens: a macro "
+                                       "bomb (a macro that uses another several times, over and over)")
+        if source == self.filename and name in self.macros and self.macros[name].arglist is None:
+            self.own_defines[name] = ("".join(t.value for t in self.macros[name].value).strip(), words[0].lineno)
+
+    def _expanded_size(self, name: str, seen: set[str]) -> int:
+        """How many tokens macro `name` expands to, its macros expanded (each counted once per use), bounded."""
+        sizes = self.__dict__.setdefault("_sizes", {})
+        macro = self.macros[name]
+        if sizes.get(name, (None,))[0] is macro:
+            return int(sizes[name][1])
+        total = 0
+        for token in macro.value:
+            word = token.value
+            if word in self.macros and word != name and word not in seen:
+                total += self._expanded_size(word, seen | {name})
+            else:
+                total += 1
+            if total > MAX_EXPANDED_TOKENS:
+                break
+        sizes[name] = (macro, total)
+        return total
+
+    def expand_macros(self, tokens: Any, expanding_from: Any = []) -> Any:   # noqa: B006 (pcpp's own signature)
+        if len(expanding_from) > MAX_MACRO_DEPTH:
+            self.fail(tokens[0].lineno if tokens else 0,
+                      f"macros expand more than {MAX_MACRO_DEPTH} deep ({' -> '.join(expanding_from[:4])} ...)")
+        result = super().expand_macros(tokens, expanding_from)
+        self.expanded += max(0, len(result) - len(tokens))
+        if self.expanded > MAX_EXPANDED_TOKENS:
+            self.fail(result[0].lineno if result else 0,
+                      f"the macros add more than {MAX_EXPANDED_TOKENS:,} tokens: a macro bomb (a macro "
+                      "that uses another several times, over and over)?")
+        if time.process_time() > self.deadline:
+            self.fail(result[0].lineno if result else 0, "the preprocessor ran out of its time")
+        return result
+
+
+def _literal(value: int) -> str:
+    """A -D value as C writes it: hexadecimal (the workshop's identifiers are), so that it has the type the file's
+    own hexadecimal #define would give it."""
+    return f"{value:#x}" if value >= 0 else str(value)
+
+
+def kit_header(name: str, declarations: bool = True) -> _Header:
+    """A kit header's macros (and, with `declarations`, its preprocessed text), preprocessed once per process. The
+    device header's declarations come from the register map it was written from (see c18.header_symbols): only its
+    directives are preprocessed."""
+    declarations = declarations or name != headers.DEVICE_HEADER
+    found = _HEADERS.get((name, declarations))
+    if found is None:
+        walled = _Walled(name, time.process_time() + 60)
+        text = headers.header_text(name)
+        if name == headers.DEVICE_HEADER and not declarations:
+            text = "\n".join(line if line.lstrip().startswith("#") else "" for line in text.splitlines())
+        walled.parse(text, name)
+        out = io.StringIO()
+        walled.write(out)
+        found = _HEADERS[name, declarations] = _Header(dict(walled.macros), (*walled.included, name), out.getvalue())
+    return found
+
+
+def header_macros() -> dict[tuple[str, bool], tuple[dict[str, dict[str, Any]], tuple[str, ...], str]]:
+    """The kit headers preprocessed so far, as plain data (a macro's attributes, its tokens as tuples): what
+    `adopt_headers` takes in another process of this kit."""
+    return {key: ({name: {**vars(macro), "value": [(t.type, t.value, t.lineno, t.lexpos, getattr(t, "source", ""))
+                                                   for t in macro.value]}
+                   for name, macro in header.macros.items()}, header.includes, header.text)
+            for key, header in _HEADERS.items()}
+
+
+def adopt_headers(plain: Mapping[tuple[str, bool], tuple[dict[str, dict[str, Any]], tuple[str, ...], str]]) -> None:
+    """Take the kit headers preprocessed elsewhere (see `header_macros`), as if preprocessed here."""
+    lexer = pcpp.Preprocessor().lexer
+    lex_token = importlib.import_module(type(lexer).__module__).LexToken     # pcpp's own copy of PLY's
+    for key, (macros, includes, text) in plain.items():
+        rebuilt = {}
+        for name, attributes in macros.items():
+            macro = pcpp.Macro.__new__(pcpp.Macro)
+            macro.__dict__.update(attributes, value=[_token(lex_token, lexer, *token)
+                                                           for token in attributes["value"]])
+            rebuilt[name] = macro
+        _HEADERS.setdefault(key, _Header(rebuilt, tuple(includes), text))
+
+
+def _token(lex_token: type, lexer: Any, kind: str, value: str, lineno: int, lexpos: int, source: str) -> Any:
+    token = lex_token()
+    token.type, token.value, token.lineno, token.lexpos, token.source, token.lexer = (kind, value, lineno, lexpos,
+                                                                                      source, lexer)
+    return token
+
+
+def preprocess(text: str, filename: str, locked: Mapping[str, int], deadline: float) -> Preprocessed:
+    """The file's text preprocessed, with the -D names `locked` to their values."""
+    walled = _Walled(filename, deadline, locked)
+    walled.parse(text, filename)
+    out = io.StringIO()
+    walled.write(_Limited(out, walled))
+    expanded = {}
+    for name in walled.own_defines:
+        macro = walled.macros.get(name)
+        if macro is not None and macro.arglist is None:
+            tokens = walled.expand_macros(walled.tokenize(name))
+            expanded[name] = "".join(t.value for t in tokens).strip()
+    return Preprocessed(out.getvalue(), walled.included, walled.own_defines, expanded)
+
+
+class _Limited:
+    """The output, with its size limited."""
+
+    def __init__(self, out: io.StringIO, walled: _Walled):
+        self.out, self.walled, self.written = out, walled, 0
+
+    def write(self, text: str) -> None:
+        self.written += len(text)
+        if self.written > MAX_OUTPUT_CHARS:
+            self.walled.fail(0, f"the preprocessed file passed {MAX_OUTPUT_CHARS:,} characters: a firmware file "
+                                "is a few thousand lines at most")
+        self.out.write(text)

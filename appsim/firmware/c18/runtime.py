@@ -1,0 +1,342 @@
+"""What translated C firmware runs on besides the board: pointers into its memory objects, C's division, strings,
+and C18's sprintf, each checking what C18 lets through (an index past the end, a char where %X reads an int).
+
+Memory is objects, not bytes: an array is a list (a tuple or bytes in program memory), a struct a list of its
+members, a variable whose address is taken a list of one. A pointer is one of those objects and an index in it.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from appsim.errors import CRuntimeError
+
+
+class Ptr:
+    """A C pointer to element `i` of memory object `mem` (called `name` in messages), which it may reach from `lo`
+    up to `hi` (excluded): a whole array, or the one variable or member it points to. `rom`: in program memory;
+    `signed`: its elements are signed chars (a string written there keeps them in range)."""
+
+    __slots__ = ("mem", "i", "lo", "hi", "name", "rom", "signed")
+
+    def __init__(self, mem: Any, i: int, lo: int, hi: int, name: str, rom: bool = False, signed: bool = False):
+        self.mem, self.i, self.lo, self.hi, self.name, self.rom, self.signed = mem, i, lo, hi, name, rom, signed
+
+    def get(self, k: int = 0) -> Any:
+        i = self.i + k
+        if not self.lo <= i < self.hi:
+            raise CRuntimeError(self._outside(i, "read"))
+        return self.mem[i]
+
+    def set(self, k: int, value: Any) -> Any:
+        i = self.i + k
+        if not self.lo <= i < self.hi:
+            raise CRuntimeError(self._outside(i, "write"))
+        if self.rom:
+            raise CRuntimeError(f"a write through a pointer into program memory ({self.name}): ROM cannot be written "
+                                "by a store, so C18 would not change it")
+        self.mem[i] = value
+        return value
+
+    def add(self, k: int) -> Ptr:
+        i = self.i + k
+        if not self.lo <= i <= self.hi:
+            raise CRuntimeError(f"pointer arithmetic left {self.name}: it points {self._where(i)}, and C only "
+                                "lets a pointer go as far as one past the end of the object it points into")
+        return Ptr(self.mem, i, self.lo, self.hi, self.name, self.rom, self.signed)
+
+    def same(self, other: object) -> bool:
+        return isinstance(other, Ptr) and other.mem is self.mem and other.i == self.i
+
+    def minus(self, other: Ptr) -> int:
+        if other.mem is not self.mem:
+            raise CRuntimeError(f"subtracting pointers into two different objects ({self.name}, {other.name}): "
+                                "C defines the difference only within one array")
+        return self.i - other.i
+
+    def _where(self, i: int) -> str:
+        n = self.hi - self.lo
+        if n == 1:
+            return f"{i - self.lo:+d} elements away from {self.name}"
+        return f"at element {i - self.lo} of {self.name}, which has {n} (0..{n - 1})"
+
+    def _outside(self, i: int, what: str) -> str:
+        n = self.hi - self.lo
+        past = "reads whatever lies next to it in RAM" if what == "read" else "overwrites whatever lies next to it"
+        if n == 1:
+            return f"a {what} {i - self.lo:+d} elements away from {self.name}, which is one variable: C18 {past}"
+        return f"a {what} of element {i - self.lo} of {self.name}, which has {n} (0..{n - 1}): C18 {past}"
+
+    def __repr__(self) -> str:
+        return f"&{self.name}[{self.i - self.lo}]"
+
+
+def outside(name: str, index: int, length: int, write: bool = False) -> int:
+    """An index past an array's end: the C runtime error for it (C18 would read or overwrite its neighbour)."""
+    past = "overwrites whatever lies after it in RAM" if write else "reads whatever lies after it in RAM"
+    raise CRuntimeError(f"{name}[{index}] is outside {name}, which has {length} elements (0..{length - 1}): "
+                        f"C18 does not check, and {past}")
+
+
+def null(what: str) -> Any:
+    raise CRuntimeError(f"{what} through a NULL pointer: nothing is there (on the board it reads or writes the "
+                        "register file at address 0)")
+
+
+def deref(p: Ptr | None, k: int = 0) -> Any:
+    return null("a read") if p is None else p.get(k)
+
+
+def store(p: Ptr | None, k: int, value: Any) -> Any:
+    return null("a write") if p is None else p.set(k, value)
+
+
+def advance(p: Ptr | None, k: int) -> Ptr | None:
+    if p is None:
+        return null("arithmetic") if k else None
+    return p.add(k)
+
+
+def same(p: Ptr | None, q: Ptr | None) -> bool:
+    return p is q if p is None or q is None else p.same(q)
+
+
+def divide(a: int, b: int) -> int:
+    """C's division: truncated toward zero."""
+    if b == 0:
+        raise CRuntimeError("a division by zero: C leaves the result undefined (C18's routine returns garbage)")
+    q = abs(a) // abs(b)
+    return q if (a < 0) == (b < 0) else -q
+
+
+def remainder(a: int, b: int) -> int:
+    """C's %: the sign of the dividend."""
+    if b == 0:
+        raise CRuntimeError("a remainder of a division by zero: C leaves the result undefined")
+    r = abs(a) % abs(b)
+    return r if a >= 0 else -r
+
+
+def shift_count(n: int) -> int:
+    if n < 0:
+        raise CRuntimeError(f"a shift by {n}: C leaves a negative shift count undefined")
+    return n
+
+
+def copy(value: Any) -> Any:
+    """A struct or array value, copied (C assigns structs by value)."""
+    return [copy(item) for item in value] if isinstance(value, list) else value
+
+
+# ------------------------------------------------------------------ strings
+def string_at(p: Ptr | None, function: str) -> list[int]:
+    """The characters of the C string `p` points to, up to its NUL (not included)."""
+    if p is None:
+        raise CRuntimeError(f"{function} was given a NULL pointer where it reads a string")
+    mem, i, hi = p.mem, p.i, p.hi
+    codes: list[int] = []
+    while i < hi:
+        code = mem[i]
+        if code == 0:
+            return codes
+        codes.append(code & 0xFF)
+        i += 1
+    raise CRuntimeError(f"{function} reads a string from {p.name}, and there is no NUL ('\\0') in it: C18 would "
+                        f"read on past its end. Leave room for the NUL that ends a C string")
+
+
+def put_string(p: Ptr | None, codes: Sequence[int], function: str) -> None:
+    """Write `codes` and a NUL at `p`."""
+    if p is None:
+        raise CRuntimeError(f"{function} was given a NULL pointer where it writes a string")
+    if p.rom:
+        raise CRuntimeError(f"{function} writes into {p.name}, which is in program memory (rom)")
+    room = p.hi - p.i
+    if len(codes) + 1 > room:
+        raise CRuntimeError(f"{function} writes {len(codes) + 1} bytes (the NUL included) into {p.name}, which has "
+                            f"room for {room} there: C18 would overwrite whatever lies after it")
+    mem, i, signed = p.mem, p.i, p.signed
+    for k, code in enumerate(codes):
+        mem[i + k] = code - 0x100 if signed and code >= 0x80 else code
+    mem[i + len(codes)] = 0
+
+
+def bytes_at(p: Ptr | None, n: int, function: str) -> bytes:
+    """`n` bytes from `p` (an array of BYTE, say)."""
+    if n == 0:
+        return b""
+    if p is None:
+        raise CRuntimeError(f"{function} reads {n} bytes through a NULL pointer")
+    if p.i + n > p.hi:
+        raise CRuntimeError(f"{function} reads {n} bytes from {p.name}, which has {p.hi - p.i} from there: C18 would "
+                            "read whatever lies after it")
+    return bytes(v & 0xFF for v in p.mem[p.i:p.i + n])
+
+
+# ------------------------------------------------------------------ sprintf
+class Arg:
+    """An argument after sprintf's format as C18 pushes it: its value, its size in bytes, its C type as written and
+    what it is (`int`, `ram` or `rom` for strings, `ptr`)."""
+
+    __slots__ = ("value", "size", "spelled", "kind", "constant")
+
+    def __init__(self, value: Any, size: int, spelled: str, kind: str, constant: bool):
+        self.value, self.size, self.spelled, self.kind, self.constant = value, size, spelled, kind, constant
+
+
+_LENGTHS = {"hh": (1, "a char"), "h": (2, "an int"), "": (2, "an int"), "H": (3, "a short long"),
+            "l": (4, "a long")}
+
+
+def sprintf(buf: Ptr | None, fmt: Ptr | None, *args: Arg) -> int:
+    """C18's sprintf: the format from program memory, the arguments as pushed (not promoted)."""
+    text = string_at(fmt, "sprintf's format")
+    out: list[int] = []
+    pending = list(args)
+    i, n = 0, len(text)
+
+    def next_arg(spec: str) -> Arg:
+        if not pending:
+            raise CRuntimeError(f"sprintf: {spec} has no argument left to read: C18 would read whatever lies on "
+                                "the stack")
+        return pending.pop(0)
+
+    while i < n:
+        c = text[i]
+        if c != 0x25:           # '%'
+            out.append(c)
+            i += 1
+            continue
+        start = i
+        i += 1
+        flags = ""
+        while i < n and chr(text[i]) in "-+ #0":
+            flags += chr(text[i])
+            i += 1
+        width: int | None = None
+        if i < n and text[i] == 0x2A:       # '*'
+            width = _int_of(next_arg("*"), 2, True, "*")
+            i += 1
+        else:
+            digits = ""
+            while i < n and 0x30 <= text[i] <= 0x39:
+                digits += chr(text[i])
+                i += 1
+            width = int(digits) if digits else None
+        precision: int | None = None
+        if i < n and text[i] == 0x2E:       # '.'
+            i += 1
+            digits = ""
+            while i < n and 0x30 <= text[i] <= 0x39:
+                digits += chr(text[i])
+                i += 1
+            precision = int(digits or "0")
+        length = ""
+        while i < n and chr(text[i]) in "hlHjzt":
+            length += chr(text[i])
+            i += 1
+        if i >= n:
+            raise CRuntimeError(f"sprintf's format ends in the middle of a conversion ({bytes(text[start:]).decode()})")
+        conversion = chr(text[i])
+        i += 1
+        spec = bytes(text[start:i]).decode("latin-1")
+        if conversion == "%":
+            out.append(0x25)
+            continue
+        if conversion in "diouxXbB":
+            if length not in _LENGTHS:
+                raise CRuntimeError(f"sprintf: {spec}: C18 knows no length {length!r} (hh, h, H, l)")
+            size, what = _LENGTHS[length]
+            arg = next_arg(spec)
+            value = _int_of(arg, size, conversion in "di", spec, what)
+            digits = _digits(value, conversion, precision)
+            sign = "-" if value < 0 else "+" if "+" in flags else " " if " " in flags else ""
+            prefix = ""
+            if "#" in flags and value:
+                prefix = {"x": "0x", "X": "0X", "o": "0", "b": "0b", "B": "0B"}.get(conversion, "")
+            body = sign + prefix + digits
+            if width is not None and len(body) < width:
+                if "-" in flags:
+                    body = body + " " * (width - len(body))
+                elif "0" in flags and precision is None:
+                    body = sign + prefix + "0" * (width - len(body)) + digits
+                else:
+                    body = " " * (width - len(body)) + body
+            out.extend(body.encode("latin-1"))
+        elif conversion == "c":
+            arg = next_arg(spec)
+            code = _int_of(arg, 1, False, spec, "a char")
+            field_ = [code]
+            out.extend(_pad(field_, width, flags))
+        elif conversion in "sS":
+            arg = next_arg(spec)
+            want = "ram" if conversion == "s" else "rom"
+            if arg.kind not in ("ram", "rom"):
+                raise CRuntimeError(f"sprintf: {spec} reads a string (a char pointer), but its argument is "
+                                    f"{arg.spelled}")
+            if arg.kind != want:
+                raise CRuntimeError(
+                    f"sprintf: {spec} reads a string in {'RAM' if want == 'ram' else 'program memory'}, but its "
+                    f"argument ({arg.spelled}) is in {'program memory' if arg.kind == 'rom' else 'RAM'}: use "
+                    f"{'%S' if arg.kind == 'rom' else '%s'} for it, as C18 tells the two memories apart")
+            codes = string_at(arg.value, f"sprintf's {spec}")
+            if precision is not None:
+                codes = codes[:precision]
+            out.extend(_pad(codes, width, flags))
+        elif conversion in "pP":
+            arg = next_arg(spec)
+            if arg.kind not in ("ram", "rom", "ptr"):
+                raise CRuntimeError(f"sprintf: {spec} reads a pointer, but its argument is {arg.spelled}")
+            out.extend(_pad(list(repr(arg.value).encode("latin-1")), width, flags))
+        else:
+            raise CRuntimeError(f"sprintf: {spec}: C18's sprintf has no conversion %{conversion} (it has no floating "
+                                "point: %d %i %u %o %x %X %b %B %c %s %S %p %%)")
+    if pending:
+        raise CRuntimeError(f"sprintf was given {len(pending)} argument{'s' if len(pending) > 1 else ''} more than "
+                            "its format reads: a conversion is missing from the format")
+    put_string(buf, out, "sprintf")
+    return len(out)
+
+
+def _int_of(arg: Arg, size: int, signed: bool, spec: str, what: str = "an int") -> int:
+    if arg.kind != "int":
+        raise CRuntimeError(f"sprintf: {spec} reads {what}, but its argument is {arg.spelled}")
+    if arg.size != size:
+        shown = f"{arg.value:#x}" if arg.constant and arg.value >= 0 else str(arg.value)
+        why = ("a constant takes the smallest type that holds its value" if arg.constant
+               else "the arguments after the format are not promoted")
+        lengths = {1: "hh", 2: "", 3: "H", 4: "l"}
+        bare = spec[:-1].rstrip("hlHjzt")
+        fix = f"{bare}{lengths[arg.size]}{spec[-1]}" if arg.size in lengths else ""
+        raise CRuntimeError(
+            f"sprintf: {spec} reads {what} ({size} byte{'s' if size > 1 else ''}), but its argument {shown} is "
+            f"{arg.spelled} ({arg.size} byte{'s' if arg.size > 1 else ''}): C18 pushes it as it is ({why}), so "
+            f"{spec} reads {'bytes past it' if size > arg.size else 'part of it and leaves the rest'}, and what it "
+            f"shows is not {shown}. Cast the argument to the size {spec} reads"
+            + (f", or write {fix}" if fix and fix != spec else ""))
+    bits = 8 * size
+    value = arg.value & ((1 << bits) - 1)
+    if signed and value >= 1 << (bits - 1):
+        value -= 1 << bits
+    return value
+
+
+def _digits(value: int, conversion: str, precision: int | None) -> str:
+    magnitude = abs(value)
+    base = {"o": 8, "x": 16, "X": 16, "b": 2, "B": 2}.get(conversion, 10)
+    digits = ""
+    while magnitude:
+        digits = "0123456789abcdef"[magnitude % base] + digits
+        magnitude //= base
+    if conversion == "X":
+        digits = digits.upper()
+    if precision is None:
+        return digits or "0"
+    return digits.rjust(precision, "0")
+
+
+def _pad(codes: list[int], width: int | None, flags: str) -> list[int]:
+    if width is None or len(codes) >= width:
+        return codes
+    space = [0x20] * (width - len(codes))
+    return codes + space if "-" in flags else space + codes

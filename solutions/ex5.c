@@ -1,0 +1,100 @@
+/* EX5 solution - Testing REMOTE Transfer Request (CAN Workshop 202, exercise 5).
+ *
+ * Goal: ask the master console for its data. Start from EX4.C: when TMR1_OVERFLOW = 1 the node does
+ * not send its data any more; instead it sends an RTR frame with its assigned ID (RTR_ID, 0x81 ..
+ * 0x86): CANSendMessage() with CAN_TX_RTR_FRAME in the flags and DataLen (3rd argument) = 0. That
+ * sets TXBnDLC bit 6 (RTR) and DLC<3:0> = 0: the workshop's DLC. CAN 2.0 advises the DLC of the data
+ * frame asked for, 5 here; both work, and the check accepts both. On receiving the RTR frame the
+ * master sends its A/D data with the ID given by the RTR frame: "after sending the RTR frame you
+ * immediately receive the data sent by the requested ID". If the node works correctly, LCD line 4
+ * shows RTR_ID (the answer's ID) and line 3 the master's A/D; line 3 alone proves nothing, since the
+ * master's 0x088 broadcast carries the same A/D.
+ *
+ * Question: your LCD must show the master's answer. Which frames must RXB0 accept now?
+ *
+ * Answer: the answer is a data frame with the same ID as the request, RTR_ID, so RX_Filter0 must be
+ * RTR_ID (under mask 0x7FF). With the 0x088 of EX4 the node would show the master's broadcast and
+ * throw the answer to its own request away: line 3 would still show the master's A/D, from the
+ * broadcast, but line 4 would read 0x088. The node needs no A/D of its own any more: an RTR frame has
+ * no data field (its DLC is still sent: 0 here, as the workshop does).
+ */
+#include <p18f8680.h>
+#include "CAN18XX8.h"
+#include <adc.h>
+#include <timers.h>
+#include <stdio.h>
+#include "APP023_GLCD.h"
+
+#pragma config OSC = HSPLL, WDT = OFF, LVP = OFF    /* Fosc = 40 MHz: the 10 MHz crystal with the 4x PLL */
+
+#define RTR_ID      0x81         /* the ID this node requests: the one assigned to you, 0x81 .. 0x86 */
+#define RX_Filter0  RTR_ID       /* RXF0: the master's answer has the ID of the request */
+#define RX_Mask0    0x7FF        /* every ID bit is compared */
+
+BYTE RxData[8];
+unsigned long RX_ID1;
+BYTE DataLen;
+enum CAN_RX_MSG_FLAGS CANMessageFlag;
+char LCD[22];                   /* one LCD line and its NUL */
+
+void CANInitialization(enum CAN_CONFIG_FLAGS config, enum CAN_OP_MODE mode)
+{
+    /* 125 kbit/s at Fosc = 40 MHz: SJW 4, BRP 10, PHSEG1 8, PHSEG2 4, PROPSEG 3 (16 TQ, sample point 75 %) */
+    CANInitialize(4, 10, 8, 4, 3, config);
+    CANSetOperationMode(CAN_OP_MODE_CONFIG);        /* CANInitialize returns in NORMAL mode, masks at 0 */
+    CANSetMask(CAN_MASK_B1, RX_Mask0, CAN_CONFIG_STD_MSG);
+    CANSetMask(CAN_MASK_B2, RX_Mask0, CAN_CONFIG_STD_MSG);
+    CANSetFilter(CAN_FILTER_B1_F1, RX_Filter0, CAN_CONFIG_STD_MSG);
+    CANSetFilter(CAN_FILTER_B1_F2, RX_Filter0, CAN_CONFIG_STD_MSG);
+    CANSetOperationMode(mode);
+}
+
+void main(void)
+{
+    BOOL heard;
+
+    GLCD_Initial();
+    setcurGLCD(1, 1);
+    putrsGLCD("EX5 REMOTE REQUEST");
+    setcurGLCD(2, 1);
+    sprintf(LCD, "TX ID  0x%03X RTR", (unsigned int)RTR_ID);
+    putsGLCD(LCD);
+    setcurGLCD(5, 1);
+    putrsGLCD("MODE LISTEN ONLY");
+    CANInitialization(CAN_CONFIG_ALL_MSG, CAN_OP_MODE_LISTEN);      /* 1, 2: hear everything, send nothing */
+    heard = FALSE;                                                  /* 3: wait for a correct frame from the */
+    while (!heard) {                                                /*    master: with RXM = 11 the buffers */
+        if (CANIsRxReady()) {                                       /*    also take frames with errors */
+            CANReceiveMessage(&RX_ID1, RxData, &DataLen, &CANMessageFlag);
+            heard = RX_ID1 == 0x088 && !(CANMessageFlag & CAN_RX_INVALID_MSG);
+        }
+    }
+    CANSetOperationMode(CAN_OP_MODE_CONFIG);                        /* 4 */
+    CANInitialization(CAN_CONFIG_VALID_STD_MSG, CAN_OP_MODE_NORMAL); /* 5, 6: filters set again */
+    setcurGLCD(5, 1);
+    putrsGLCD("MODE NORMAL     ");
+    /* Fosc/4 with a 1:8 prescaler: TMR1 overflows every 65536 x 8 x 0.1 us = 52.4288 ms */
+    OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_8 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF);
+    while (1) {
+        if (PIR1bits.TMR1IF) {                         /* TMR1_OVERFLOW */
+            PIR1bits.TMR1IF = 0;
+            CANSendMessage(RTR_ID, NULL, 0, CAN_TX_PRIORITY_0 & CAN_TX_STD_FRAME & CAN_TX_RTR_FRAME);
+        }
+        if (CANIsRxReady()) {
+            CANReceiveMessage(&RX_ID1, RxData, &DataLen, &CANMessageFlag);
+            setcurGLCD(4, 1);
+            if (CANMessageFlag & CAN_RX_RTR_FRAME) {    /* a remote frame asks for data and carries none */
+                sprintf(LCD, "RX ID  0x%03lX RTR", RX_ID1);
+                putsGLCD(LCD);
+            } else {
+                sprintf(LCD, "RX ID  0x%03lX    ", RX_ID1);
+                putsGLCD(LCD);
+                if (DataLen >= 5) {     /* 01 02 03 ADRESH ADRESL: a shorter frame has no A/D value */
+                    setcurGLCD(3, 1);
+                    sprintf(LCD, "A/D    %4d", ((int)RxData[3] << 8) | RxData[4]);
+                    putsGLCD(LCD);
+                }
+            }
+        }
+    }
+}
