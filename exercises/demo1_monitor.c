@@ -11,6 +11,10 @@
  *   TODO 3: putsUSART waits until the whole line is sent (this one's 44 bytes for a 5-byte frame: 23 ms
  *           at 19200 baud, 10 bits a byte). What happens to the frames that arrive meanwhile?
  *           CANReceiveMessage's flags say when RXB0/RXB1 overflowed: report it.
+ *   TODO 4: the line format of docs/monitor-format.md: this starter prints neither STD/XTD
+ *           (CANMessageFlag & CAN_RX_XTD_FRAME) nor DATA/RTR (CANMessageFlag & CAN_RX_RTR_FRAME).
+ *   TODO 5: Timer1 wraps every 52.4288 ms: count its overflows (PIR1bits.TMR1IF), so that the time
+ *           counts up, in seconds since the monitor started.
  * The solution (solutions/demo1_monitor.c) also keeps frames in a queue and counts exactly how many it lost.
  */
 #include <p18f8680.h>
@@ -43,7 +47,8 @@ void main(void)
         if (CANIsRxReady()) {
             CANReceiveMessage(&RX_ID1, RxData, &DataLen, &CANMessageFlag);
             /* TODO 3: if (CANMessageFlag & CAN_RX_OVERFLOW) ... */
-            micros = ((unsigned long)ReadTimer1() * 8 + 5) / 10;   /* µs; wraps every 52.4 ms: count PIR1bits.TMR1IF */
+            micros = ((unsigned long)ReadTimer1() * 8 + 5) / 10;   /* µs. TODO 5: wraps every 52.4 ms: count PIR1bits.TMR1IF */
+            /* TODO 4: the documented line format: STD/XTD and DATA/RTR after the ID */
             n = sprintf(line, "%5lu.%06lu  0x%03lX  DLC %hhu  ", micros / 1000000, micros % 1000000, RX_ID1, DataLen);
             shown = DataLen < 8 ? DataLen : 8;
             for (k = 0; k < shown; k++)
