@@ -272,7 +272,8 @@ def cmd_gradescope_autograder(args: argparse.Namespace) -> int:
     from appsim.workshop.grading.autograder import build
     seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2**32)
     try:
-        build(args.out, seed=seed, time_limit_s=args.time_limit, visibility=args.visibility)
+        build(args.out, seed=seed, time_limit_s=args.time_limit, visibility=args.visibility,
+              c_options=tuple(args.c_option))
     except GradeError as error:
         print(f"appsim gradescope-autograder: {error}", file=sys.stderr)
         return 2
@@ -452,6 +453,7 @@ def build_parser() -> argparse.ArgumentParser:
     autograder.add_argument("--visibility", default="visible",
                             choices=("visible", "after_due_date", "after_published", "hidden"),
                             help="when students see each check's result on Gradescope (default visible)")
+    _c_option(autograder)
     autograder.set_defaults(handler=cmd_gradescope_autograder)
 
     checking = commands.add_parser(

@@ -208,3 +208,28 @@ def test_a_visibility_and_a_bad_output_are_checked_before_anything_is_written(tm
                              "--visibility", "sometimes"], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and "invalid choice" in result.stderr
     assert not list(tmp_path.iterdir())
+
+
+def test_an_autograder_made_with_c18s_minus_oi_grades_c_with_it_as_appsim_grade_does(autograder, tmp_path):
+    """`appsim gradescope-autograder -Oi`: its run_autograder builds .c submissions with C18's -Oi, as `appsim grade
+    -Oi` does: Ex3's `(RxData[3] << 8) | RxData[4]` without a cast loses the A/D's high byte under C18's default (LCD
+    line 3 wrong, 4/5) and keeps it under -Oi (5/5). The second autograder shares the first one's installed kit."""
+    from test_c_firmware import SHIFT_NO_CAST, _edited
+
+    source = _edited("ex3", SHIFT_NO_CAST, ("char LCD[22];", "char LCD[22];\nunsigned int adc;")).encode()
+    root = tmp_path / "autograder"
+    made = subprocess.run([sys.executable, "-m", "appsim", "gradescope-autograder", str(tmp_path / "oi.zip"),
+                           "--seed", str(SEED), "-Oi"], capture_output=True, text=True, timeout=600)
+    assert made.returncode == 0, made.stderr
+    with zipfile.ZipFile(tmp_path / "oi.zip") as archive:
+        archive.extractall(root / "source")
+        assert json.loads(archive.read("appsim-autograder.json"))["c_options"] == ["-Oi"]
+    (root / "appsim-venv").symlink_to(autograder / "appsim-venv")
+    shutil.copy2(autograder / "run_autograder", root / "run_autograder")
+    scores = {}
+    for name, zip_root in (("default", autograder), ("-Oi", root)):
+        answer = gradescope(zip_root, {"ex3.c": source})
+        scores[name] = sum(t["score"] for t in answer["tests"] if t["name"].startswith("EX3:"))
+        lcd = next(t for t in answer["tests"] if t["name"].startswith("EX3:") and t["number"] == "3.3")
+        assert lcd["status"] == ("passed" if name == "-Oi" else "failed"), lcd
+    assert scores == {"default": 4, "-Oi": 5}

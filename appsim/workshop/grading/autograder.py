@@ -18,6 +18,7 @@ import sys
 import tempfile
 import time
 import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -60,8 +61,10 @@ exec "$root/appsim-venv/bin/python" -m appsim.workshop.grading.autograder "$root
 
 # ====================================================================== the zip
 
-def build(out: Path, *, seed: int, time_limit_s: float = 60.0, visibility: str = "visible") -> Path:
-    """Write the autograder zip to `out`: setup.sh, run_autograder, the kit as a wheel and its settings."""
+def build(out: Path, *, seed: int, time_limit_s: float = 60.0, visibility: str = "visible",
+          c_options: Sequence[str] = ()) -> Path:
+    """Write the autograder zip to `out`: setup.sh, run_autograder, the kit as a wheel and its settings (among them
+    C18's `c_options` for .c firmware, such as -Oi, as `appsim grade --c-option` takes them)."""
     if visibility not in VISIBILITIES:
         raise GradeError(f"visibility is one of Gradescope's {', '.join(VISIBILITIES)}; got {visibility!r}")
     if out.suffix.lower() != ".zip":
@@ -71,7 +74,7 @@ def build(out: Path, *, seed: int, time_limit_s: float = 60.0, visibility: str =
     with tempfile.TemporaryDirectory(prefix="appsim-autograder-") as scratch:
         wheel = kit_wheel(Path(scratch))
         settings = {"seed": seed, "time_limit_s": time_limit_s, "visibility": visibility, "kit": kit_version(),
-                    "wheel": wheel.name}
+                    "wheel": wheel.name, "c_options": list(c_options)}
         temporary = out.with_name(f".{out.name}.{os.getpid()}.tmp")
         try:
             with zipfile.ZipFile(temporary, "w", zipfile.ZIP_DEFLATED) as archive:
@@ -179,11 +182,14 @@ def _grade(submission: Path, settings: dict[str, Any]) -> tuple[Record, int]:
     time_s = float(settings["time_limit_s"])
     with tempfile.TemporaryDirectory(prefix="appsim-autograder-") as scratch:
         records = grade([submission], results=Path(scratch) / "grades.jsonl", seed=int(settings["seed"]),
-                        limits=Limits(time_s=time_s, stall_s=min(10.0, time_s)), trusted=trusted, out=sys.stdout)
+                        limits=Limits(time_s=time_s, stall_s=min(10.0, time_s),
+                                      c_options=tuple(settings.get("c_options", ()))),
+                        trusted=trusted, out=sys.stdout)
     if len(records) != 1:
         found = ", ".join(r["submission"] for r in records) or "none"
-        return failed(f"Hand in one submission: the files ex1.py .. ex6.py and demo1_monitor.py (or the workshop's "
-                      f"notebooks), at the top of the upload or in one folder; this upload holds {len(records)} "
+        return failed(f"Hand in one submission: the files ex1.py .. ex6.py and demo1_monitor.py (in C: ex1.c .. "
+                      f"ex6.c and demo1_monitor.c; or the workshop's notebooks), at the top of the upload or in one "
+                      f"folder; this upload holds {len(records)} "
                       f"({found}).", note), 0
     return results_json(records[0], settings["visibility"], note, isolated=not trusted), 0
 
