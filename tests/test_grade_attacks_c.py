@@ -41,7 +41,7 @@ ATTACKS = {        # name: (the attack, put before the starter's own text; words
     "itself": ("#include __FILE__\n", "includes only its own headers"),
     "macro_bomb": (BOMB, "macro bomb"),
     "argument_bomb": ("#define F(x) x x x x x x x x\n#define G(x) F(F(F(F(x))))\nint y = G(G(G(G(1))));\n",
-                      "a macro bomb"),
+                      "the macro F() expands to more than 200,000 tokens"),
     "deep_nesting": ("int deep = " + "(" * 5000 + "1" + ")" * 5000 + ";\n", "nest more than"),
     "huge_unit": ("".join(f"int v{n} = {n};\n" for n in range(24_000)), "more than 10,000 lines"),   # in 512 kB
     "inline_asm": ("void attack(void) { _asm MOVLW 0x55 _endasm }\n", "inline assembly"),

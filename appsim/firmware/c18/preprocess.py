@@ -59,6 +59,7 @@ class _Walled(pcpp.Preprocessor):
         self.included: list[str] = []
         self.own_defines: dict[str, tuple[str, int]] = {}
         self.expanded = 0
+        self.nesting, self.line = 0, 0                      # expand_macros calls within calls; the line expanded
         self.line_directive = "#line"
         self.rewrite_paths: list[tuple[str, str]] = []      # pcpp shortens paths under the working folder
         for name in ("__PCPP__", "__DATE__", "__TIME__"):
@@ -164,11 +165,27 @@ class _Walled(pcpp.Preprocessor):
         sizes[name] = (macro, total)
         return total
 
+    def macro_expand_args(self, macro: Any, args: Any) -> Any:
+        """A function-like macro's body with its arguments in place, refused as soon as it passes the limit, before
+        pcpp rescans it (`F(x) x x x x` nested: each level is 4 times the last, and the first one past the limit
+        is the last one made)."""
+        body = super().macro_expand_args(macro, args)
+        if len(body) > MAX_EXPANDED_TOKENS:
+            self.fail(self.line, f"the macro {macro.name}() expands to more than {MAX_EXPANDED_TOKENS:,} tokens: a "
+                                 "macro bomb (a macro whose argument is used several times, nested over and over)")
+        return body
+
     def expand_macros(self, tokens: Any, expanding_from: Any = []) -> Any:   # noqa: B006 (pcpp's own signature)
         if len(expanding_from) > MAX_MACRO_DEPTH:
             self.fail(tokens[0].lineno if tokens else 0,
                       f"macros expand more than {MAX_MACRO_DEPTH} deep ({' -> '.join(expanding_from[:4])} ...)")
-        result = super().expand_macros(tokens, expanding_from)
+        if self.nesting == 0 and tokens:
+            self.line = tokens[0].lineno                # the line being expanded, for what its macros do
+        self.nesting += 1
+        try:
+            result = super().expand_macros(tokens, expanding_from)
+        finally:
+            self.nesting -= 1
         self.expanded += max(0, len(result) - len(tokens))
         if self.expanded > MAX_EXPANDED_TOKENS:
             self.fail(result[0].lineno if result else 0,

@@ -13,6 +13,7 @@ from types import ModuleType
 from typing import Protocol
 
 from appsim.board.app023 import APP023
+from appsim.bus.trace import Trace
 from appsim.bus.wire import Bus, BusEvent
 from appsim.can.frame import STANDARD_ID_MAX, CanFrame
 from appsim.chip.ecan.acceptance import raw29
@@ -215,6 +216,19 @@ def decimal_values(text: str) -> list[int]:
     return [int(token) for token in re.findall(r"\b\d+\b", text)]
 
 
+class _TraceFull(Exception):
+    """A trace of the check's passed its window: the run stops at that event (a flood would otherwise run on to the
+    end of the check, in the grader's time, only to be judged a memory fault there)."""
+
+
+def _stop_when_full(trace: Trace) -> Callable[[BusEvent], None]:
+    """A trace listener that stops the run at the first event its window cannot keep."""
+    def listener(event: BusEvent) -> None:
+        if trace.window is not None and trace.total > trace.window:
+            raise _TraceFull
+    return listener
+
+
 class Trial:
     """The classroom for one check run: seeded potentiometers, the student's board, the simulated clock."""
 
@@ -232,6 +246,8 @@ class Trial:
         self.potentiometers = values[:STATIONS]
         self.master_potentiometers = values[STATIONS:]
         self.bus = Bus(Simulator(), CLASSROOM_BIT_RATE)
+        for trace in (self.bus.trace, self.bus.loopback_trace):
+            trace.listeners.append(_stop_when_full(trace))
         self._room: Classroom | None = None
         self._board: APP023 | None = None
 
@@ -271,7 +287,10 @@ class Trial:
     def run(self, seconds: float) -> None:
         """Run the simulated clock; the student's firmware crashing, hanging or returning is `Fatal`."""
         sim = self.bus.sim
-        sim.run_for(seconds)
+        try:
+            sim.run_for(seconds)
+        except _TraceFull:          # the run ends there: what went by since can no longer be judged (below)
+            pass
         process = self.board.mcu.process
         assert process is not None, "the student's firmware was started in Trial.classroom"
         if process.failure is not None:
