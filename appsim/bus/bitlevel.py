@@ -148,6 +148,9 @@ class Outcome:
     assembled: Assembled | None = None                 # for error-recognition mode, at its first error
     flag_at_ps: int | None = None        # where its first error flag started
     fired: list[Injection] = field(default_factory=list)   # its injections that took effect (see `_Node._fire`)
+    # a receiver that received the frame without error up to the ACK slot and sent its ACK: REC - 1 there (rule 8),
+    # whether the frame becomes valid (`received`) or an error follows
+    acknowledged: bool = False
     sampled: int = 0                     # the bits it sampled, from SOF until the bus was idle
 
 
@@ -162,11 +165,19 @@ class Run:
     first_error_by: str                 # that node
     end_ps: int                          # end of EOF or of the last error or overload delimiter
     idle_ps: int                         # end of the intermission: the next SOF may start
+    sof_in_intermission: bool = False    # idle_ps is a dominant third intermission bit: a SOF, a frame waits for it
 
 
-# Phases of a node's protocol state machine.
-_FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE = range(6)
+# Phases of a node's protocol state machine; from _IDLE on a node is done with the frame (an idle one takes a dominant
+# bit for a SOF; one bus-off, or at the next frame's SOF in its intermission, reads nothing more in this run).
+_FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE, _BUS_OFF, _NEXT_FRAME = range(8)
 _SAMPLED = ("bit", "form")          # change what the node samples at their bit
+
+
+def rule_8(rec: int) -> int:
+    """REC after a reception without error up to the ACK slot and the ACK sent (rule 8): - 1 from 1..127, back to 127
+    above (the standard allows 119..127)."""
+    return rec - 1 if 0 < rec <= 127 else min(rec, 127)
 
 
 @lru_cache(maxsize=1024)
@@ -197,10 +208,11 @@ class _Clocked:
 class _Node(_Clocked):
     """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
 
-    def __init__(self, station: Station, sof_ps: int):
+    def __init__(self, station: Station, sof_ps: int, senders: list[_Node]):
         super().__init__(station, sof_ps)
         self.out = Outcome(station.name)
         self.followers: list[_Follower] = []
+        self.senders = senders                # the run's nodes with a frame to send (shared)
         self.tec, self.rec = station.tec, station.rec
         self.tx = _transmitted(station.frame) if station.frame is not None else ()
         # its injections, by (kind, bit) (bit None: `AT_THEIR_PLACE`), in the order given; "dominant" ones by themselves
@@ -234,6 +246,7 @@ class _Node(_Clocked):
         self.count = 0
         self.idle_ps = 0
         self.end_ps = 0
+        self.sof_in_intermission = False
 
     @property
     def passive(self) -> bool:
@@ -242,6 +255,8 @@ class _Node(_Clocked):
     # ----------------------------------------------------------------- one sample
     def sample(self, wire: int) -> int:
         """Read the wire at this bit's sample point; return what to drive in the next bit."""
+        if self.phase >= _BUS_OFF:
+            return 1                          # it reads nothing, so no injection fires, and drives nothing
         for injection in self.injected.get(("sampled", self.k), ()) if self.injected else ():
             read = 1 - wire if injection.kind == "bit" else 0
             if read != wire:
@@ -328,8 +343,9 @@ class _Node(_Clocked):
             if self.need is not None and len(self.bits) == self.need:
                 self.tail = 0
             return self._next_level()
-        if not self.bits and wire == 1:
-            return self._error("form", "a recessive SOF")
+        if not self.bits and wire == 1:       # a SOF sampled recessive: no frame has begun for this node
+            self.phase = _IDLE
+            return 1
         self.run = self.run + 1 if wire == self.last else 1
         self.last = wire
         self.bits.append(wire)
@@ -347,6 +363,11 @@ class _Node(_Clocked):
 
     def _tail_bit(self, wire: int) -> int:
         tail = self.tail
+        if tail == 1 and not self.transmitting and self.crc_ok and not self.station.listen_only:
+            if wire == 1:                     # it sent its ACK (dominant) and reads recessive
+                return self._error("bit", "sent dominant, read recessive (the ACK slot)")
+            self.out.acknowledged = True      # rule 8: received without error up to the ACK slot, ACK sent
+            self.rec = rule_8(self.rec)
         if tail in (0, 2) and wire == 0:
             return self._error("form", "the CRC delimiter read dominant" if tail == 0
                                else "the ACK delimiter read dominant")
@@ -397,6 +418,8 @@ class _Node(_Clocked):
             if self.bits and not self.transmitting:
                 out.assembled = self._assembled()
         self.active_flag = not self.passive
+        self.phase, self.flag_bits, self.overload = _FLAG, 0, False
+        self.equal_run, self.equal_level, self.dominant_in_flag = 0, -1, False
         if not self.station.listen_only:
             if self.transmitting:
                 if kind == "ack" and not self.active_flag:
@@ -405,9 +428,7 @@ class _Node(_Clocked):
                     self._count(tec=tec)      # rule 3 (exception 2: a stuff error in arbitration, tec=0)
             else:
                 self._count(rec=1)            # rule 1
-        self.phase, self.flag_bits, self.overload = _FLAG, 0, False
-        self.equal_run, self.equal_level, self.dominant_in_flag = 0, -1, False
-        return 0 if self.active_flag else 1
+        return 0 if self.active_flag and self.phase == _FLAG else 1
 
     def _start_overload(self) -> int:
         if self.station.listen_only:
@@ -423,6 +444,8 @@ class _Node(_Clocked):
         self.rec += rec
         self.out.tec_increment += tec
         self.out.rec_increment += rec
+        if self.tec > 255:                    # bus-off (rule 10): from now on no influence on the bus (12.1.4.2 j)
+            self.phase = _BUS_OFF
 
     def _eight_more(self) -> None:
         """Rules 4, 5 and 6: +8 to the counter of the node's role in the frame."""
@@ -449,6 +472,8 @@ class _Node(_Clocked):
                 return 1
             if self.deferred_tec and self.dominant_in_flag:
                 self._count(tec=self.deferred_tec)
+                if self.phase == _BUS_OFF:
+                    return 1
             self.deferred_tec = 0
             self.dominant_run = 0
         self.phase, self.first_after_flag = _AFTER_FLAG, True
@@ -480,15 +505,33 @@ class _Node(_Clocked):
 
     def _intermission_bit(self, wire: int) -> int:
         if wire == 0:
-            return self._start_overload()
+            if self.count < INTERMISSION_BITS - 1:      # the first or second bit: an overload condition
+                return self._start_overload()
+            return self._start_of_frame_in_intermission(wire)
         self.count += 1
-        if self.count == 3:
+        if self.count == INTERMISSION_BITS:
             self.phase, self.idle_ps = _IDLE, self.bit_end()
         return 1
 
+    def _start_of_frame_in_intermission(self, wire: int) -> int:
+        """A dominant third intermission bit is a SOF. When a frame waits for it (a sender of this run that lost
+        arbitration, or failed and may retry at once), that frame starts there: this run ends, the next frame's
+        SOF is this bit. Else this node reads the frame begun, as a receiver."""
+        if any(node.out.lost_at_ps is not None or not (node.out.transmitted or node.passive)
+               for node in self.senders):
+            self.phase, self.idle_ps = _NEXT_FRAME, self.bit_end() - self.station.bit_ps
+            self.sof_in_intermission = True
+            return 1
+        self._restart_frame()
+        return self._frame_bit(wire)
 
+    def _silent_bit(self, wire: int) -> int:
+        return 1
+
+
+# what a node does with the bit it samples, by its `phase`
 _BY_PHASE = (_Node._frame_bit, _Node._flag_bit, _Node._after_flag_bit, _Node._delimiter_bit, _Node._intermission_bit,
-             _Node._idle_bit)               # what a node does with the bit it samples, by its `phase`
+             _Node._idle_bit, _Node._silent_bit, _Node._silent_bit)
 
 
 def _value(bits: list[int]) -> int:
@@ -531,15 +574,18 @@ def _engines(stations: list[Station], sof_ps: int) -> list[_Engine]:
     """A protocol engine per station, but one for receivers alike (`_Follower`)."""
     engines: list[_Engine] = []
     leaders: dict[tuple[object, ...], _Node] = {}
+    senders: list[_Node] = []
     for station in stations:
         alike = _BEHAVIOUR(station) if station.frame is None else None
         leader = leaders.get(alike) if alike is not None else None
         if leader is not None:
             engines.append(_Follower(station, sof_ps, leader))
             continue
-        node = _Node(station, sof_ps)
+        node = _Node(station, sof_ps, senders)
         if alike is not None:
             leaders[alike] = node
+        else:
+            senders.append(node)
         engines.append(node)
     return engines
 
@@ -570,12 +616,12 @@ class _Run:
             return False
         if time > self.limit:
             raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
-        idle = engine.phase == _IDLE
+        idle = engine.phase >= _IDLE
         if self.first_error_ps is None and isinstance(engine, _Node):
             self._step_watched(engine, wire)
         else:
             engine.step(wire)
-        self.busy += idle - (engine.phase == _IDLE)
+        self.busy += idle - (engine.phase >= _IDLE)
         return True
 
     def _step_watched(self, node: _Node, wire: int) -> None:
@@ -612,7 +658,7 @@ class _Run:
                         self._step_watched(leader, wire)
                     else:
                         leader.step(wire)
-                    if leader.phase == _IDLE:
+                    if leader.phase >= _IDLE:
                         self.busy -= 1 + len(leader.followers)
                 behind += 1
                 continue
@@ -647,8 +693,10 @@ class _Run:
                 engine.out.sampled = engine.k
                 outcomes[engine.station.name] = engine.out
         leaders = self.leaders
+        at_sof = [n.idle_ps for n in leaders if n.sof_in_intermission]
         return Run(outcomes, _wire(leaders, self.sof_ps, one_clock), self.first_error_ps, self.first_error,
-                   self.first_error_by, max(n.end_ps for n in leaders), max(n.idle_ps for n in leaders))
+                   self.first_error_by, max(n.end_ps for n in leaders),
+                   min(at_sof) if at_sof else max(n.idle_ps for n in leaders), bool(at_sof))
 
 
 def run_frame(sof_ps: int, stations: list[Station]) -> Run:
@@ -699,7 +747,7 @@ def _moved(run: Run, was_ps: int, before: list[Station], sof_ps: int, stations: 
         outcomes[name] = moved
     return Run(outcomes, [(time + shift, level) for time, level in run.wire],
                None if run.first_error_ps is None else run.first_error_ps + shift, run.first_error,
-               run.first_error_by, run.end_ps + shift, run.idle_ps + shift)
+               run.first_error_by, run.end_ps + shift, run.idle_ps + shift, run.sof_in_intermission)
 
 
 def _wire(leaders: list[_Node], sof_ps: int, one_clock: bool) -> list[tuple[int, int]]:

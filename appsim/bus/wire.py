@@ -90,7 +90,7 @@ class _Port(Protocol):
     def failed(self, buffer: str, tec_increment: int) -> None: ...
     def receive(self, frame: CanFrame) -> str:
         """A frame went through: take it; returns what the node did with it, for the trace."""
-    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None: ...
+    def receive_error(self, rec_increment: int, assembled: Assembled | None, acknowledged: bool) -> None: ...
     def activity(self) -> None: ...
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
         """Its bit time and sample point in ps (the bus's bit time when its rate is within tolerance)."""
@@ -156,8 +156,8 @@ class _NodePort(_Port):
     def receive(self, frame: CanFrame) -> str:
         return str(self.controller.frame_received(frame))
 
-    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None:
-        self.controller.receive_error(rec_increment=rec_increment, assembled=assembled)
+    def receive_error(self, rec_increment: int, assembled: Assembled | None, acknowledged: bool) -> None:
+        self.controller.receive_error(rec_increment=rec_increment, assembled=assembled, acknowledged=acknowledged)
 
     def activity(self) -> None:
         self.controller.bus_activity()
@@ -205,7 +205,7 @@ class _LinkPort(_Port):
     def started(self, buffer: str) -> None: ...
     def lost(self, buffer: str) -> None: ...
     def failed(self, buffer: str, tec_increment: int) -> None: ...
-    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None: ...
+    def receive_error(self, rec_increment: int, assembled: Assembled | None, acknowledged: bool) -> None: ...
     def activity(self) -> None: ...
 
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
@@ -470,7 +470,8 @@ class Bus:
         sender, frame = next(((e[1], e[3]) for e in entries if run.outcomes[e[1].name].lost_at_ps is None),
                              (entries[0][1], entries[0][3]))
         end = run.end_ps
-        self.busy_until = max(run.idle_ps, end + INTERMISSION_BITS * self.bit_ps)
+        self.busy_until = (run.idle_ps if run.sof_in_intermission
+                           else max(run.idle_ps, end + INTERMISSION_BITS * self.bit_ps))
         error = self._describe(run, entries, ports)
         flag_at_bit = None if run.first_error_ps is None else (run.first_error_ps - start) // self.bit_ps
 
@@ -481,6 +482,8 @@ class Bus:
                 if id(port) in buffers and outcome.lost_at_ps is None:
                     if outcome.transmitted:
                         port.succeeded(buffers[id(port)])
+                        if outcome.errors:       # in a frame nobody sent, begun in its intermission
+                            port.receive_error(outcome.rec_increment, outcome.assembled, False)
                     else:
                         port.failed(buffers[id(port)], tec_increment=outcome.tec_increment)
                     self._after_transmit(port)
@@ -513,7 +516,8 @@ class Bus:
         if outcome.received is not None:
             done.append(port.receive(outcome.received))
         if outcome.errors:
-            port.receive_error(outcome.rec_increment, outcome.assembled)
+            port.receive_error(outcome.rec_increment, outcome.assembled,
+                               outcome.acknowledged and outcome.received is None)
             done.append("; ".join(outcome.errors))
         return "; ".join(done) or "nothing"
 
