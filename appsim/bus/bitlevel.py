@@ -1,9 +1,9 @@
 """One frame on the wire bit by bit, as each node samples it at its own bit rate: the errors each node detects, its
 error and overload flags, delimiters and intermission, and the ISO 11898-1 error-counter changes they cause.
 
-The wire (`appsim.bus.wire`) runs this only for frames where something goes wrong or a node's bit rate differs;
-every node hard-synchronises on the SOF edge and is not resynchronised after it (a node outside the oscillator
-tolerance loses the bit grid within a few bits whatever it does).
+The wire (`appsim.bus.wire`) runs this only for frames where something goes wrong, a node's bit rate differs or an
+oscillator is off; every node hard-synchronises on the SOF edge, and with its own oscillator (`Station.tq_ps`)
+resynchronises within SJW on the edges after it (`_Run.resynchronising`).
 """
 from __future__ import annotations
 
@@ -132,6 +132,10 @@ class Station:
     rec: int
     frame: CanFrame | None = None
     injections: tuple[Injection, ...] = ()
+    # Its own oscillator's time quantum (ps) and SJW (TQ): it resynchronises within the frame (`_Run.resynchronising`).
+    # 0: it keeps the bit grid of the SOF, the wire's choice while every oscillator on the bus is exact.
+    tq_ps: int = 0
+    sjw_tq: int = 0
 
 
 @dataclass(slots=True)
@@ -186,18 +190,31 @@ def _transmitted(frame: CanFrame) -> tuple[WireBit, ...]:
 
 
 class _Clocked:
-    """A station's bit clock, hard-synchronised on SOF, and the levels it drives, bit by bit from SOF."""
+    """A station's bit clock, hard-synchronised on SOF, and the levels it drives, bit by bit from SOF. On the grid of
+    its SOF, or, resynchronising (`_Run.resynchronising`), where its last edges put its bit: `start_at`, `sample_at`."""
 
     def __init__(self, station: Station, sof_ps: int):
         self.station = station
         self.t0 = sof_ps
         self.levels: list[int] = []
         self.k = 0                            # the bit being sampled, in its own bits from SOF
+        self.resync = False
+        self.start_at = self.sample_at = sof_ps
 
     def sample_time(self) -> int:
+        if self.resync:
+            return self.sample_at
         return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
 
+    def bit_start(self) -> int:
+        if self.resync:
+            return self.start_at
+        return self.t0 + self.k * self.station.bit_ps
+
     def bit_end(self) -> int:
+        """Where this bit ends, as the node sees it when it samples it (a resynchronisation may end it sooner)."""
+        if self.resync:
+            return self.sample_at + self.station.bit_ps - self.station.sample_ps
         return self.t0 + (self.k + 1) * self.station.bit_ps
 
     def level_at(self, time: int) -> int:
@@ -208,11 +225,11 @@ class _Clocked:
 class _Node(_Clocked):
     """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
 
-    def __init__(self, station: Station, sof_ps: int, senders: list[_Node]):
+    def __init__(self, station: Station, sof_ps: int, nodes: list[_Node]):
         super().__init__(station, sof_ps)
         self.out = Outcome(station.name)
         self.followers: list[_Follower] = []
-        self.senders = senders                # the run's nodes with a frame to send (shared)
+        self.nodes = nodes                    # the run's nodes (their engines; shared)
         self.tec, self.rec = station.tec, station.rec
         self.tx = _transmitted(station.frame) if station.frame is not None else ()
         # its injections, by (kind, bit) (bit None: `AT_THEIR_PLACE`), in the order given; "dominant" ones by themselves
@@ -516,10 +533,17 @@ class _Node(_Clocked):
     def _start_of_frame_in_intermission(self, wire: int) -> int:
         """A dominant third intermission bit is a SOF. When a frame waits for it (a sender of this run that lost
         arbitration, or failed and may retry at once), that frame starts there: this run ends, the next frame's
-        SOF is this bit. Else this node reads the frame begun, as a receiver."""
-        if any(node.out.lost_at_ps is not None or not (node.out.transmitted or node.passive)
-               for node in self.senders):
-            self.phase, self.idle_ps = _NEXT_FRAME, self.bit_end() - self.station.bit_ps
+        SOF is this bit. Else this node reads the frame begun, as a receiver.
+
+        One frame runs at a time: while another node is still in its frame, flag or delimiter (a node at another bit
+        rate), its bits would hit the frame that starts, which this run cannot show; the bit is then taken as an
+        overload condition, so that they still hit what follows."""
+        nodes = self.nodes
+        if not all(node.phase == _INTERMISSION or node.phase >= _IDLE for node in nodes):
+            return self._start_overload()
+        if any(node.tx and (node.out.lost_at_ps is not None or not (node.out.transmitted or node.passive))
+               for node in nodes):
+            self.phase, self.idle_ps = _NEXT_FRAME, self.bit_start()
             self.sof_in_intermission = True
             return 1
         self._restart_frame()
@@ -574,18 +598,17 @@ def _engines(stations: list[Station], sof_ps: int) -> list[_Engine]:
     """A protocol engine per station, but one for receivers alike (`_Follower`)."""
     engines: list[_Engine] = []
     leaders: dict[tuple[object, ...], _Node] = {}
-    senders: list[_Node] = []
+    nodes: list[_Node] = []
     for station in stations:
         alike = _BEHAVIOUR(station) if station.frame is None else None
         leader = leaders.get(alike) if alike is not None else None
         if leader is not None:
             engines.append(_Follower(station, sof_ps, leader))
             continue
-        node = _Node(station, sof_ps, senders)
+        node = _Node(station, sof_ps, nodes)
+        nodes.append(node)
         if alike is not None:
             leaders[alike] = node
-        else:
-            senders.append(node)
         engines.append(node)
     return engines
 
@@ -609,6 +632,7 @@ class _Run:
         self.limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
         self.first_error_ps: int | None = None
         self.first_error = self.first_error_by = ""
+        self.changes: list[tuple[int, int]] | None = None    # the wire, as `resynchronising` records it
 
     def sample(self, time: int, engine: _Engine, wire: int) -> bool:
         """`engine` samples `wire` at `time`, unless every station is idle already: whether it did."""
@@ -684,6 +708,93 @@ class _Run:
                 return
             heapq.heappush(queue, (engines[index].sample_time(), index))
 
+    def resynchronising(self) -> None:
+        """Stations with their own oscillators (ISO 11898-1 bit timing): each samples at its own sample point and
+        drives each bit from its own bit start. On a recessive-to-dominant edge an idle station hard-synchronises (its
+        bit starts there); a station in a frame resynchronises, once between two sample points and after a recessive
+        sample: an edge after SYNC_SEG and before the sample point (a positive phase error of e TQ) lengthens Phase
+        Segment 1 by min(e, SJW), unless the station itself sends dominant; an edge after the sample point
+        (negative) shortens Phase Segment 2 by min(|e|, SJW), so that with |e| <= SJW the next bit starts at the
+        edge. Events in time order: bit starts (the wire changes) before samples at one time."""
+        leaders = self.leaders
+        for node in leaders:
+            node.resync, node.start_at, node.sample_at = True, self.sof_ps, self.sof_ps + node.station.sample_ps
+        drive = [node.levels[0] for node in leaders]
+        read = [1] * len(leaders)                       # what each read at its last sample point
+        resynced = [False] * len(leaders)
+        sampling = [True] * len(leaders)                # its next event is its sample (else: its next bit start)
+        version = [0] * len(leaders)
+        dominant = drive.count(0)
+        self.changes = [(self.sof_ps, 0)] if dominant else []
+        queue = [(node.sample_at, 1, index, 0) for index, node in enumerate(leaders)]
+        heapq.heapify(queue)
+        self.busy = len(leaders)
+
+        def push(index: int, time: int, sample: bool) -> None:
+            version[index] += 1
+            sampling[index] = sample
+            heapq.heappush(queue, (time, sample, index, version[index]))
+
+        def edge(time: int, source: int) -> None:
+            for index, node in enumerate(leaders):
+                if index == source or node.phase > _IDLE:
+                    continue
+                station = node.station
+                if node.phase == _IDLE:                 # hard synchronisation: its bit starts at the edge
+                    node.start_at, node.sample_at = time, time + station.sample_ps
+                    push(index, node.sample_at, True)
+                    continue
+                if resynced[index] or read[index] == 0 or not station.sjw_tq:
+                    continue
+                tq, jump = station.tq_ps, station.sjw_tq * station.tq_ps
+                quanta = (time - node.start_at) // tq       # the edge's TQ in this bit: 0 is SYNC_SEG
+                if sampling[index]:                         # before its sample point: positive phase error
+                    if quanta == 0 or drive[index] == 0:
+                        continue
+                    node.sample_at = node.start_at + station.sample_ps + min(quanta * tq, jump)
+                    push(index, node.sample_at, True)
+                else:                                       # after it: negative, the next bit starts sooner
+                    late = station.bit_ps // tq - quanta
+                    end = node.sample_at + station.bit_ps - station.sample_ps
+                    push(index, time if late * tq <= jump else end - jump, False)
+                resynced[index] = True
+
+        while True:
+            time, sample, index, seen = heapq.heappop(queue)
+            if seen != version[index]:
+                continue
+            node = leaders[index]
+            if sample:
+                if not self.busy:
+                    break
+                if time > self.limit:
+                    raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
+                wire = 0 if dominant else 1
+                idle = node.phase >= _IDLE
+                if self.first_error_ps is None:
+                    self._step_watched(node, wire)
+                else:
+                    node.step(wire)
+                self.busy += idle - (node.phase >= _IDLE)
+                read[index], resynced[index] = wire, False
+                push(index, node.sample_at + node.station.bit_ps - node.station.sample_ps, False)
+                continue
+            node.start_at, node.sample_at = time, time + node.station.sample_ps
+            push(index, node.sample_at, True)
+            level = node.levels[node.k] if node.k < len(node.levels) else 1
+            if level == drive[index]:
+                continue
+            drive[index] = level
+            before = dominant
+            dominant += 1 if level == 0 else -1
+            if (before == 0) != (dominant == 0):
+                self.changes.append((time, 0 if dominant else 1))
+                if dominant:
+                    edge(time, index)
+        for engine in self.engines:
+            if isinstance(engine, _Follower):
+                engine.k, engine.phase = engine.leader.k, engine.leader.phase
+
     def result(self, one_clock: bool) -> Run:
         outcomes = {}
         for engine in self.engines:
@@ -694,7 +805,8 @@ class _Run:
                 outcomes[engine.station.name] = engine.out
         leaders = self.leaders
         at_sof = [n.idle_ps for n in leaders if n.sof_in_intermission]
-        return Run(outcomes, _wire(leaders, self.sof_ps, one_clock), self.first_error_ps, self.first_error,
+        wire = self.changes if self.changes is not None else _wire(leaders, self.sof_ps, one_clock)
+        return Run(outcomes, wire, self.first_error_ps, self.first_error,
                    self.first_error_by, max(n.end_ps for n in leaders),
                    min(at_sof) if at_sof else max(n.idle_ps for n in leaders), bool(at_sof))
 
@@ -713,7 +825,9 @@ def run_frame(sof_ps: int, stations: list[Station]) -> Run:
         return _moved(*kept, sof_ps, stations)
     run = _Run(sof_ps, stations)
     one_clock = all(station.bit_ps == stations[0].bit_ps for station in stations)
-    if one_clock:
+    if any(station.sjw_tq for station in stations):
+        run.resynchronising()
+    elif one_clock:
         run.in_lock_step()
     else:
         run.by_sample_time()
