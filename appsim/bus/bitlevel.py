@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from itertools import chain, count, zip_longest
 from operator import attrgetter
+from typing import cast
 
 from appsim.can.bits import INTERMISSION_BITS, TAIL_BITS, WireBit, crc15, encode_annotated, max_frame_bits
 from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
@@ -190,31 +191,23 @@ def _transmitted(frame: CanFrame) -> tuple[WireBit, ...]:
 
 
 class _Clocked:
-    """A station's bit clock, hard-synchronised on SOF, and the levels it drives, bit by bit from SOF. On the grid of
-    its SOF, or, resynchronising (`_Run.resynchronising`), where its last edges put its bit: `start_at`, `sample_at`."""
+    """A station's bit clock, hard-synchronised on SOF, on the grid of its SOF, and the levels it drives, bit by bit
+    from SOF."""
 
     def __init__(self, station: Station, sof_ps: int):
         self.station = station
         self.t0 = sof_ps
         self.levels: list[int] = []
         self.k = 0                            # the bit being sampled, in its own bits from SOF
-        self.resync = False
-        self.start_at = self.sample_at = sof_ps
 
     def sample_time(self) -> int:
-        if self.resync:
-            return self.sample_at
         return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
 
     def bit_start(self) -> int:
-        if self.resync:
-            return self.start_at
         return self.t0 + self.k * self.station.bit_ps
 
     def bit_end(self) -> int:
-        """Where this bit ends, as the node sees it when it samples it (a resynchronisation may end it sooner)."""
-        if self.resync:
-            return self.sample_at + self.station.bit_ps - self.station.sample_ps
+        """Where this bit ends, as the node sees it when it samples it."""
         return self.t0 + (self.k + 1) * self.station.bit_ps
 
     def level_at(self, time: int) -> int:
@@ -553,6 +546,24 @@ class _Node(_Clocked):
         return 1
 
 
+class _Resynchronising(_Node):
+    """A node whose bit follows the edges it sees (`_Run.resynchronising`): where its bit starts and where it samples
+    are its state, `start_at` and `sample_at`, not a grid (a resynchronisation may yet end the bit sooner)."""
+
+    def __init__(self, station: Station, sof_ps: int, nodes: list[_Node]):
+        super().__init__(station, sof_ps, nodes)
+        self.start_at, self.sample_at = sof_ps, sof_ps + station.sample_ps
+
+    def sample_time(self) -> int:
+        return self.sample_at
+
+    def bit_start(self) -> int:
+        return self.start_at
+
+    def bit_end(self) -> int:
+        return self.sample_at + self.station.bit_ps - self.station.sample_ps
+
+
 # what a node does with the bit it samples, by its `phase`
 _BY_PHASE = (_Node._frame_bit, _Node._flag_bit, _Node._after_flag_bit, _Node._delimiter_bit, _Node._intermission_bit,
              _Node._idle_bit, _Node._silent_bit, _Node._silent_bit)
@@ -594,8 +605,8 @@ _BEHAVIOUR = attrgetter(*(f.name for f in dataclasses.fields(Station) if f.name 
 _OUTCOME = attrgetter(*(f.name for f in dataclasses.fields(Outcome)))
 
 
-def _engines(stations: list[Station], sof_ps: int) -> list[_Engine]:
-    """A protocol engine per station, but one for receivers alike (`_Follower`)."""
+def _engines(stations: list[Station], sof_ps: int, node: type[_Node]) -> list[_Engine]:
+    """A protocol engine per station (a `node`), but one for receivers alike (`_Follower`)."""
     engines: list[_Engine] = []
     leaders: dict[tuple[object, ...], _Node] = {}
     nodes: list[_Node] = []
@@ -605,11 +616,11 @@ def _engines(stations: list[Station], sof_ps: int) -> list[_Engine]:
         if leader is not None:
             engines.append(_Follower(station, sof_ps, leader))
             continue
-        node = _Node(station, sof_ps, nodes)
-        nodes.append(node)
+        engine = node(station, sof_ps, nodes)
+        nodes.append(engine)
         if alike is not None:
-            leaders[alike] = node
-        engines.append(node)
+            leaders[alike] = engine
+        engines.append(engine)
     return engines
 
 
@@ -624,9 +635,9 @@ def _level(time: int, leaders: list[_Node]) -> int:
 class _Run:
     """One frame being run: its stations' engines, how many are not idle yet, and the first error flag."""
 
-    def __init__(self, sof_ps: int, stations: list[Station]):
+    def __init__(self, sof_ps: int, stations: list[Station], resynchronising: bool = False):
         self.sof_ps = sof_ps
-        self.engines = _engines(stations, sof_ps)
+        self.engines = _engines(stations, sof_ps, _Resynchronising if resynchronising else _Node)
         self.leaders = [engine for engine in self.engines if isinstance(engine, _Node)]
         self.busy = len(self.engines)
         self.limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
@@ -716,9 +727,7 @@ class _Run:
         Segment 1 by min(e, SJW), unless the station itself sends dominant; an edge after the sample point
         (negative) shortens Phase Segment 2 by min(|e|, SJW), so that with |e| <= SJW the next bit starts at the
         edge. Events in time order: bit starts (the wire changes) before samples at one time."""
-        leaders = self.leaders
-        for node in leaders:
-            node.resync, node.start_at, node.sample_at = True, self.sof_ps, self.sof_ps + node.station.sample_ps
+        leaders = cast(list[_Resynchronising], self.leaders)
         drive = [node.levels[0] for node in leaders]
         read = [1] * len(leaders)                       # what each read at its last sample point
         resynced = [False] * len(leaders)
@@ -823,9 +832,10 @@ def run_frame(sof_ps: int, stations: list[Station]) -> Run:
     kept = _runs.get(key)
     if kept is not None:
         return _moved(*kept, sof_ps, stations)
-    run = _Run(sof_ps, stations)
+    resynchronising = any(station.sjw_tq for station in stations)
+    run = _Run(sof_ps, stations, resynchronising)
     one_clock = all(station.bit_ps == stations[0].bit_ps for station in stations)
-    if any(station.sjw_tq for station in stations):
+    if resynchronising:
         run.resynchronising()
     elif one_clock:
         run.in_lock_step()
