@@ -150,11 +150,12 @@ def test_rule_8_9_11_a_passive_receiver_that_receives_a_frame_goes_back_to_127_a
     a, b, c = three_nodes(world)
     world.bus.inject("b", "crc", frames=15)
     until_events(world, 15)
-    assert counters(a, b, c) == [(120, 0), (0, 135), (0, 15)]
+    # c ACKs each frame, then reads b's flag in EOF: -1 at the ACK slot, +1 (rule 8 before rule 1): it stays at 1
+    assert counters(a, b, c) == [(120, 0), (0, 135), (0, 1)]
     assert b.ecan.error_passive and comstat(b) == R.RXBP | R.RXWARN | R.EWARN
     assert comstat(a) == R.TXWARN | R.EWARN
     until_events(world, 16)
-    assert world.bus.trace[15].ok and counters(a, b, c) == [(119, 0), (0, 127), (0, 14)]
+    assert world.bus.trace[15].ok and counters(a, b, c) == [(119, 0), (0, 127), (0, 0)]
     assert not b.ecan.error_passive and comstat(b) == R.RXWARN | R.EWARN
 
 

@@ -33,7 +33,7 @@ from appsim.board.app023 import APP023
 from appsim.bus.bitlevel import ERROR_DELIMITER_BITS, ERROR_FLAG_BITS
 from appsim.bus.controller import Mode
 from appsim.bus.monitor import error_counters, format_event, stamp
-from appsim.bus.wire import BUS_IDLE_BITS, Bus
+from appsim.bus.wire import BUS_IDLE_BITS, Bus, oscillator_tolerance
 from appsim.can import physical
 from appsim.can.bits import INTERMISSION_BITS, encode, encode_annotated, frame_bits, frame_time, max_frame_bits
 from appsim.can.bittiming import (
@@ -267,6 +267,7 @@ def usart_baud(spbrg: int, brgh: bool) -> float:
 
 
 CLASSROOM = BitTiming(sjw=4, brp=10, seg1ph=8, seg2ph=4, prseg=3)       # CANInitialize(4, 10, 8, 4, 3, ...)
+SJW_1 = BitTiming(sjw=1, brp=10, seg1ph=8, seg2ph=4, prseg=3)           # the same with SJW 1 (01's SJW lesson)
 WRONG_BRP = BitTiming(sjw=4, brp=5, seg1ph=8, seg2ph=4, prseg=3)        # 01_bit_timing's wrong node
 WORKSHOP_FRAME = CanFrame(0x100, bytes([0x01, 0x02, 0x03, 0x01, 0x2C]))  # 00_can_in_15_minutes' frame
 EXTENDED_FRAME = CanFrame(0x100 << 18 | 0x2A5A5, WORKSHOP_FRAME.data, extended=True)
@@ -511,7 +512,7 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
                            lambda ns: kbit(tries.OTHERS_TIMING.bit_rate(FOSC_HZ))),
         "13.1 ms": lambda ns: milli(Fraction(0x10000 * 4 * tries.TIMER1_PRESCALE, FOSC_HZ), 1),
         "0.3 s": lambda ns: f"{tries.TRY_SECONDS:g} s",
-        "REC 131": lambda ns: most_common_rec(ns["room"]),
+        "REC 128": lambda ns: most_common_rec(ns["room"]),
         "0.25 µs": lambda ns: micro(WRONG_BRP.tq_seconds(FOSC_HZ)),
         "4 µs": lambda ns: micro(WRONG_BRP.tq_seconds(FOSC_HZ) * WRONG_BRP.tq_per_bit),
         "48 m": lambda ns: metres(physical.workshop_max_bus_length_metres(1_000_000)),
@@ -519,10 +520,14 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "100 ms": lambda ns: milli(Fraction(100 * 10_000 * 4, FOSC_HZ)),    # the culprit's Delay10KTCYx(100)
         "53 ms": lambda ns: milli(Fraction(next(e for e in ns["room"].bus.trace if e.error).start_ps, PS_PER_SECOND)),
         "300 ms": lambda ns: milli(Fraction(ns["room"].bus.sim.now, PS_PER_SECOND)),
-        "TEC 248": lambda ns: f"TEC {ns['room'].stations[2].ecan.tec}",
-        "TEC 136": lambda ns: f"TEC {ns['culprit'].ecan.tec}",
-        "REC 255": lambda ns: f"REC {min(board.ecan.rec for board in innocent_boards(ns['room']))}",
-        "0.305 s": lambda ns: f"{ns['bus_off_at']['station2']:.3f} s",
+        "TEC 256": lambda ns: f"TEC {ns['room'].stations[2].ecan.tec}",
+        "TEC 168": lambda ns: f"TEC {ns['culprit'].ecan.tec}",
+        "REC 138": lambda ns: f"REC {min(board.ecan.rec for board in innocent_boards(ns['room']))}",
+        "REC 255": lambda ns: f"REC {ns['culprit'].ecan.rec}",
+        "0.405 s": lambda ns: f"{ns['bus_off_at']['station2'][0]:.3f} s",
+        "6 TQ": lambda ns: f"{ns['LATE']} TQ" if ns["LATE"] > CLASSROOM.sjw else "not beyond SJW",
+        "0.98 %": lambda ns: f"{float(oscillator_tolerance(CLASSROOM)) * 100:.2f} %",
+        "0.31 %": lambda ns: f"{float(oscillator_tolerance(SJW_1)) * 100:.2f} %",
     },
     "ex4": {
         "TEC 128": lambda ns: "TEC " + str(8 * sum(1 for e in ns['lonely'].bus.trace
@@ -545,7 +550,7 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
         "32 bits": lambda ns: f"{wire_bits_of(EXTENDED_FRAME, 'ID', 'SRR', 'IDE', 'RTR')} bits",
         "132 bits": lambda ns: f"{max_frame_bits(8)} bits",
         "11 bits": lambda ns: f"{BUS_IDLE_BITS} bits",
-        **{text: lambda ns, text=text: verified_in("01_bit_timing", text) for text in ("TEC 248", "300 ms", "0.305 s")},
+        **{text: lambda ns, text=text: verified_in("01_bit_timing", text) for text in ("TEC 256", "300 ms", "0.405 s")},
         "20 TQ": lambda ns: f"{phase2_not_programmable().tq_per_bit} TQ",
         "100 kbit/s": same(lambda ns: kbit(phase2_not_programmable().bit_rate(FOSC_HZ)),
                            lambda ns: in_length_tables("100 kbit/s")),
@@ -582,7 +587,7 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
     },
 }
 
-AFTER_THE_NEXT_CODE_CELL = {("01_bit_timing", "100 ms")}
+AFTER_THE_NEXT_CODE_CELL = {("01_bit_timing", "100 ms"), ("01_bit_timing", "6 TQ")}
 """Quantities that describe what the code cell right below the prose does: checked once it has run."""
 
 GIVEN = {
@@ -788,7 +793,8 @@ def test_d1_a_passive_flag_ends_its_own_senders_frame_not_another_nodes_as_00_sa
     assert passive_sender.error and "bit error at bit 20" in passive_sender.error
     assert dict(passive_sender.received) == {name: "stuff error at bit 25: six recessive bits in a row"
                                              for name in ("master", "third")}, "its passive flag: bits 21-26"
-    assert boards["master"].ecan.rec == boards["third"].ecan.rec == 16, "+ 1 for each of 17 failed frames, - 1"
+    assert boards["master"].ecan.rec == boards["third"].ecan.rec == 1, \
+        "each ACK-error frame: - 1 at its ACK slot (rule 8), + 1 at the form error after it; then + 1 at bit 25"
     bus, boards = three_boards(("master", "stuff", 30, 16))
     assert [e.ok for e in bus.trace] == [False] * 15 + [True], "the 16th: the master flags it, passive"
     assert boards["master"].ecan.error_passive, "15 x 9 = 135: its flag in the 16th was recessive"
@@ -994,6 +1000,32 @@ def test_d11_00_draws_the_error_states_and_says_what_the_firmware_reads(ran):
     for words in ("TXWARN", "RXWARN", "EWARN", "TXBP", "RXBP", "TXBO", "PIR3.ERRIF", "CANIsBusOff()",
                   "above 95", "above 127", "Bus-off ends on its own"):
         assert words in note, words
+
+
+def test_d13_01_teaches_sjw_with_a_resynchronisation_picture_and_a_try_where_sjw_changes_what_happens(ran):
+    """The kit resynchronises within SJW (tests/test_resynchronisation.py): 01 says so next to the lesson, draws an edge
+    moving the sample point by at most SJW, and its try shows SJW 1 failing where SJW 4 holds."""
+    lesson = cell_with("01_bit_timing", "## SJW: how the nodes keep in step")
+    for words in ("**lengthens Phase1**", "**shortens Phase2**", "at most SJW", "hard synchronisation"):
+        assert words in lesson, words
+    ns = ran("01_bit_timing")
+    assert ns["LATE"] > CLASSROOM.sjw, "the picture's edge is later than SJW: the sample point moves SJW only"
+    figure = plots.resynchronisation(CLASSROOM, ns["LATE"], ns["EARLY"])
+    [ax] = figure.axes
+    moved = [line.get_xdata()[0] for line in ax.lines if line.get_gid() == "sample point"]
+    sample = 1 + CLASSROOM.prseg + CLASSROOM.seg1ph
+    assert moved == [sample + CLASSROOM.sjw, sample], "late: moved by SJW, not by the whole phase error"
+    plt.close(figure)
+    codes = [c.source for c in read("01_bit_timing").cells if c.cell_type == "code"]
+    assert any("plots.resynchronisation(workshop, LATE, EARLY)" in code for code in codes)
+    [try_cell] = [code for code in codes if "tries.oscillator_drift(SJW, PPM)" in code]
+    shipped: dict = {}
+    exec(try_cell.replace("tries.oscillator_drift(SJW, PPM)", ""), {"tries": tries}, shipped)
+    holds, fails = tries.oscillator_drift(shipped["SJW"], shipped["PPM"]), tries.oscillator_drift(1, shipped["PPM"])
+    assert shipped["SJW"] == CLASSROOM.sjw and holds.received == holds.sent and not holds.errors
+    assert fails.received < fails.sent and fails.errors, "SJW 1: the same drift breaks frames"
+    assert f"= {holds.tolerance_ppm:,.0f} ppm" in str(holds) and "0.31%" in str(fails)
+    assert "docs/differences.md" in cell_with("01_bit_timing", "The kit models this")
 
 
 def test_d12_01_decodes_brgcon2_bit_by_bit_and_shows_the_phseg2_prg_off_trap(ran):

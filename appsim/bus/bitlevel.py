@@ -1,9 +1,9 @@
 """One frame on the wire bit by bit, as each node samples it at its own bit rate: the errors each node detects, its
 error and overload flags, delimiters and intermission, and the ISO 11898-1 error-counter changes they cause.
 
-The wire (`appsim.bus.wire`) runs this only for frames where something goes wrong or a node's bit rate differs;
-every node hard-synchronises on the SOF edge and is not resynchronised after it (a node outside the oscillator
-tolerance loses the bit grid within a few bits whatever it does).
+The wire (`appsim.bus.wire`) runs this only for frames where something goes wrong, a node's bit rate differs or an
+oscillator is off; every node hard-synchronises on the SOF edge, and with its own oscillator (`Station.tq_ps`)
+resynchronises within SJW on the edges after it (`_Run.resynchronising`).
 """
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from itertools import chain, count, zip_longest
 from operator import attrgetter
+from typing import cast
 
 from appsim.can.bits import INTERMISSION_BITS, TAIL_BITS, WireBit, crc15, encode_annotated, max_frame_bits
 from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
@@ -132,6 +133,10 @@ class Station:
     rec: int
     frame: CanFrame | None = None
     injections: tuple[Injection, ...] = ()
+    # Its own oscillator's time quantum (ps) and SJW (TQ): it resynchronises within the frame (`_Run.resynchronising`).
+    # 0: it keeps the bit grid of the SOF, the wire's choice while every oscillator on the bus is exact.
+    tq_ps: int = 0
+    sjw_tq: int = 0
 
 
 @dataclass(slots=True)
@@ -148,6 +153,9 @@ class Outcome:
     assembled: Assembled | None = None                 # for error-recognition mode, at its first error
     flag_at_ps: int | None = None        # where its first error flag started
     fired: list[Injection] = field(default_factory=list)   # its injections that took effect (see `_Node._fire`)
+    # a receiver that received the frame without error up to the ACK slot and sent its ACK: REC - 1 there (rule 8),
+    # whether the frame becomes valid (`received`) or an error follows
+    acknowledged: bool = False
     sampled: int = 0                     # the bits it sampled, from SOF until the bus was idle
 
 
@@ -162,11 +170,19 @@ class Run:
     first_error_by: str                 # that node
     end_ps: int                          # end of EOF or of the last error or overload delimiter
     idle_ps: int                         # end of the intermission: the next SOF may start
+    sof_in_intermission: bool = False    # idle_ps is a dominant third intermission bit: a SOF, a frame waits for it
 
 
-# Phases of a node's protocol state machine.
-_FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE = range(6)
+# Phases of a node's protocol state machine; from _IDLE on a node is done with the frame (an idle one takes a dominant
+# bit for a SOF; one bus-off, or at the next frame's SOF in its intermission, reads nothing more in this run).
+_FRAME, _FLAG, _AFTER_FLAG, _DELIMITER, _INTERMISSION, _IDLE, _BUS_OFF, _NEXT_FRAME = range(8)
 _SAMPLED = ("bit", "form")          # change what the node samples at their bit
+
+
+def rule_8(rec: int) -> int:
+    """REC after a reception without error up to the ACK slot and the ACK sent (rule 8): - 1 from 1..127, back to 127
+    above (the standard allows 119..127)."""
+    return rec - 1 if 0 < rec <= 127 else min(rec, 127)
 
 
 @lru_cache(maxsize=1024)
@@ -175,7 +191,8 @@ def _transmitted(frame: CanFrame) -> tuple[WireBit, ...]:
 
 
 class _Clocked:
-    """A station's bit clock, hard-synchronised on SOF, and the levels it drives, bit by bit from SOF."""
+    """A station's bit clock, hard-synchronised on SOF, on the grid of its SOF, and the levels it drives, bit by bit
+    from SOF."""
 
     def __init__(self, station: Station, sof_ps: int):
         self.station = station
@@ -186,7 +203,11 @@ class _Clocked:
     def sample_time(self) -> int:
         return self.t0 + self.k * self.station.bit_ps + self.station.sample_ps
 
+    def bit_start(self) -> int:
+        return self.t0 + self.k * self.station.bit_ps
+
     def bit_end(self) -> int:
+        """Where this bit ends, as the node sees it when it samples it."""
         return self.t0 + (self.k + 1) * self.station.bit_ps
 
     def level_at(self, time: int) -> int:
@@ -197,10 +218,11 @@ class _Clocked:
 class _Node(_Clocked):
     """One node's protocol engine: it samples the wire once a bit and decides what it drives in the next bit."""
 
-    def __init__(self, station: Station, sof_ps: int):
+    def __init__(self, station: Station, sof_ps: int, nodes: list[_Node]):
         super().__init__(station, sof_ps)
         self.out = Outcome(station.name)
         self.followers: list[_Follower] = []
+        self.nodes = nodes                    # the run's nodes (their engines; shared)
         self.tec, self.rec = station.tec, station.rec
         self.tx = _transmitted(station.frame) if station.frame is not None else ()
         # its injections, by (kind, bit) (bit None: `AT_THEIR_PLACE`), in the order given; "dominant" ones by themselves
@@ -234,6 +256,7 @@ class _Node(_Clocked):
         self.count = 0
         self.idle_ps = 0
         self.end_ps = 0
+        self.sof_in_intermission = False
 
     @property
     def passive(self) -> bool:
@@ -242,6 +265,8 @@ class _Node(_Clocked):
     # ----------------------------------------------------------------- one sample
     def sample(self, wire: int) -> int:
         """Read the wire at this bit's sample point; return what to drive in the next bit."""
+        if self.phase >= _BUS_OFF:
+            return 1                          # it reads nothing, so no injection fires, and drives nothing
         for injection in self.injected.get(("sampled", self.k), ()) if self.injected else ():
             read = 1 - wire if injection.kind == "bit" else 0
             if read != wire:
@@ -328,8 +353,9 @@ class _Node(_Clocked):
             if self.need is not None and len(self.bits) == self.need:
                 self.tail = 0
             return self._next_level()
-        if not self.bits and wire == 1:
-            return self._error("form", "a recessive SOF")
+        if not self.bits and wire == 1:       # a SOF sampled recessive: no frame has begun for this node
+            self.phase = _IDLE
+            return 1
         self.run = self.run + 1 if wire == self.last else 1
         self.last = wire
         self.bits.append(wire)
@@ -347,6 +373,11 @@ class _Node(_Clocked):
 
     def _tail_bit(self, wire: int) -> int:
         tail = self.tail
+        if tail == 1 and not self.transmitting and self.crc_ok and not self.station.listen_only:
+            if wire == 1:                     # it sent its ACK (dominant) and reads recessive
+                return self._error("bit", "sent dominant, read recessive (the ACK slot)")
+            self.out.acknowledged = True      # rule 8: received without error up to the ACK slot, ACK sent
+            self.rec = rule_8(self.rec)
         if tail in (0, 2) and wire == 0:
             return self._error("form", "the CRC delimiter read dominant" if tail == 0
                                else "the ACK delimiter read dominant")
@@ -397,6 +428,8 @@ class _Node(_Clocked):
             if self.bits and not self.transmitting:
                 out.assembled = self._assembled()
         self.active_flag = not self.passive
+        self.phase, self.flag_bits, self.overload = _FLAG, 0, False
+        self.equal_run, self.equal_level, self.dominant_in_flag = 0, -1, False
         if not self.station.listen_only:
             if self.transmitting:
                 if kind == "ack" and not self.active_flag:
@@ -405,9 +438,7 @@ class _Node(_Clocked):
                     self._count(tec=tec)      # rule 3 (exception 2: a stuff error in arbitration, tec=0)
             else:
                 self._count(rec=1)            # rule 1
-        self.phase, self.flag_bits, self.overload = _FLAG, 0, False
-        self.equal_run, self.equal_level, self.dominant_in_flag = 0, -1, False
-        return 0 if self.active_flag else 1
+        return 0 if self.active_flag and self.phase == _FLAG else 1
 
     def _start_overload(self) -> int:
         if self.station.listen_only:
@@ -423,6 +454,8 @@ class _Node(_Clocked):
         self.rec += rec
         self.out.tec_increment += tec
         self.out.rec_increment += rec
+        if self.tec > 255:                    # bus-off (rule 10): from now on no influence on the bus (12.1.4.2 j)
+            self.phase = _BUS_OFF
 
     def _eight_more(self) -> None:
         """Rules 4, 5 and 6: +8 to the counter of the node's role in the frame."""
@@ -449,6 +482,8 @@ class _Node(_Clocked):
                 return 1
             if self.deferred_tec and self.dominant_in_flag:
                 self._count(tec=self.deferred_tec)
+                if self.phase == _BUS_OFF:
+                    return 1
             self.deferred_tec = 0
             self.dominant_run = 0
         self.phase, self.first_after_flag = _AFTER_FLAG, True
@@ -480,15 +515,58 @@ class _Node(_Clocked):
 
     def _intermission_bit(self, wire: int) -> int:
         if wire == 0:
-            return self._start_overload()
+            if self.count < INTERMISSION_BITS - 1:      # the first or second bit: an overload condition
+                return self._start_overload()
+            return self._start_of_frame_in_intermission(wire)
         self.count += 1
-        if self.count == 3:
+        if self.count == INTERMISSION_BITS:
             self.phase, self.idle_ps = _IDLE, self.bit_end()
         return 1
 
+    def _start_of_frame_in_intermission(self, wire: int) -> int:
+        """A dominant third intermission bit is a SOF. When a frame waits for it (a sender of this run that lost
+        arbitration, or failed and may retry at once), that frame starts there: this run ends, the next frame's
+        SOF is this bit. Else this node reads the frame begun, as a receiver.
 
+        One frame runs at a time: while another node is still in its frame, flag or delimiter (a node at another bit
+        rate), its bits would hit the frame that starts, which this run cannot show; the bit is then taken as an
+        overload condition, so that they still hit what follows."""
+        nodes = self.nodes
+        if not all(node.phase == _INTERMISSION or node.phase >= _IDLE for node in nodes):
+            return self._start_overload()
+        if any(node.tx and (node.out.lost_at_ps is not None or not (node.out.transmitted or node.passive))
+               for node in nodes):
+            self.phase, self.idle_ps = _NEXT_FRAME, self.bit_start()
+            self.sof_in_intermission = True
+            return 1
+        self._restart_frame()
+        return self._frame_bit(wire)
+
+    def _silent_bit(self, wire: int) -> int:
+        return 1
+
+
+class _Resynchronising(_Node):
+    """A node whose bit follows the edges it sees (`_Run.resynchronising`): where its bit starts and where it samples
+    are its state, `start_at` and `sample_at`, not a grid (a resynchronisation may yet end the bit sooner)."""
+
+    def __init__(self, station: Station, sof_ps: int, nodes: list[_Node]):
+        super().__init__(station, sof_ps, nodes)
+        self.start_at, self.sample_at = sof_ps, sof_ps + station.sample_ps
+
+    def sample_time(self) -> int:
+        return self.sample_at
+
+    def bit_start(self) -> int:
+        return self.start_at
+
+    def bit_end(self) -> int:
+        return self.sample_at + self.station.bit_ps - self.station.sample_ps
+
+
+# what a node does with the bit it samples, by its `phase`
 _BY_PHASE = (_Node._frame_bit, _Node._flag_bit, _Node._after_flag_bit, _Node._delimiter_bit, _Node._intermission_bit,
-             _Node._idle_bit)               # what a node does with the bit it samples, by its `phase`
+             _Node._idle_bit, _Node._silent_bit, _Node._silent_bit)
 
 
 def _value(bits: list[int]) -> int:
@@ -527,20 +605,22 @@ _BEHAVIOUR = attrgetter(*(f.name for f in dataclasses.fields(Station) if f.name 
 _OUTCOME = attrgetter(*(f.name for f in dataclasses.fields(Outcome)))
 
 
-def _engines(stations: list[Station], sof_ps: int) -> list[_Engine]:
-    """A protocol engine per station, but one for receivers alike (`_Follower`)."""
+def _engines(stations: list[Station], sof_ps: int, node: type[_Node]) -> list[_Engine]:
+    """A protocol engine per station (a `node`), but one for receivers alike (`_Follower`)."""
     engines: list[_Engine] = []
     leaders: dict[tuple[object, ...], _Node] = {}
+    nodes: list[_Node] = []
     for station in stations:
         alike = _BEHAVIOUR(station) if station.frame is None else None
         leader = leaders.get(alike) if alike is not None else None
         if leader is not None:
             engines.append(_Follower(station, sof_ps, leader))
             continue
-        node = _Node(station, sof_ps)
+        engine = node(station, sof_ps, nodes)
+        nodes.append(engine)
         if alike is not None:
-            leaders[alike] = node
-        engines.append(node)
+            leaders[alike] = engine
+        engines.append(engine)
     return engines
 
 
@@ -555,14 +635,15 @@ def _level(time: int, leaders: list[_Node]) -> int:
 class _Run:
     """One frame being run: its stations' engines, how many are not idle yet, and the first error flag."""
 
-    def __init__(self, sof_ps: int, stations: list[Station]):
+    def __init__(self, sof_ps: int, stations: list[Station], resynchronising: bool = False):
         self.sof_ps = sof_ps
-        self.engines = _engines(stations, sof_ps)
+        self.engines = _engines(stations, sof_ps, _Resynchronising if resynchronising else _Node)
         self.leaders = [engine for engine in self.engines if isinstance(engine, _Node)]
         self.busy = len(self.engines)
         self.limit = sof_ps + _MAX_BUS_BITS * max(s.bit_ps for s in stations)
         self.first_error_ps: int | None = None
         self.first_error = self.first_error_by = ""
+        self.changes: list[tuple[int, int]] | None = None    # the wire, as `resynchronising` records it
 
     def sample(self, time: int, engine: _Engine, wire: int) -> bool:
         """`engine` samples `wire` at `time`, unless every station is idle already: whether it did."""
@@ -570,12 +651,12 @@ class _Run:
             return False
         if time > self.limit:
             raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
-        idle = engine.phase == _IDLE
+        idle = engine.phase >= _IDLE
         if self.first_error_ps is None and isinstance(engine, _Node):
             self._step_watched(engine, wire)
         else:
             engine.step(wire)
-        self.busy += idle - (engine.phase == _IDLE)
+        self.busy += idle - (engine.phase >= _IDLE)
         return True
 
     def _step_watched(self, node: _Node, wire: int) -> None:
@@ -612,7 +693,7 @@ class _Run:
                         self._step_watched(leader, wire)
                     else:
                         leader.step(wire)
-                    if leader.phase == _IDLE:
+                    if leader.phase >= _IDLE:
                         self.busy -= 1 + len(leader.followers)
                 behind += 1
                 continue
@@ -638,6 +719,91 @@ class _Run:
                 return
             heapq.heappush(queue, (engines[index].sample_time(), index))
 
+    def resynchronising(self) -> None:
+        """Stations with their own oscillators (ISO 11898-1 bit timing): each samples at its own sample point and
+        drives each bit from its own bit start. On a recessive-to-dominant edge an idle station hard-synchronises (its
+        bit starts there); a station in a frame resynchronises, once between two sample points and after a recessive
+        sample: an edge after SYNC_SEG and before the sample point (a positive phase error of e TQ) lengthens Phase
+        Segment 1 by min(e, SJW), unless the station itself sends dominant; an edge after the sample point
+        (negative) shortens Phase Segment 2 by min(|e|, SJW), so that with |e| <= SJW the next bit starts at the
+        edge. Events in time order: bit starts (the wire changes) before samples at one time."""
+        leaders = cast(list[_Resynchronising], self.leaders)
+        drive = [node.levels[0] for node in leaders]
+        read = [1] * len(leaders)                       # what each read at its last sample point
+        resynced = [False] * len(leaders)
+        sampling = [True] * len(leaders)                # its next event is its sample (else: its next bit start)
+        version = [0] * len(leaders)
+        dominant = drive.count(0)
+        self.changes = [(self.sof_ps, 0)] if dominant else []
+        queue = [(node.sample_at, 1, index, 0) for index, node in enumerate(leaders)]
+        heapq.heapify(queue)
+        self.busy = len(leaders)
+
+        def push(index: int, time: int, sample: bool) -> None:
+            version[index] += 1
+            sampling[index] = sample
+            heapq.heappush(queue, (time, sample, index, version[index]))
+
+        def edge(time: int, source: int) -> None:
+            for index, node in enumerate(leaders):
+                if index == source or node.phase > _IDLE:
+                    continue
+                station = node.station
+                if node.phase == _IDLE:                 # hard synchronisation: its bit starts at the edge
+                    node.start_at, node.sample_at = time, time + station.sample_ps
+                    push(index, node.sample_at, True)
+                    continue
+                if resynced[index] or read[index] == 0 or not station.sjw_tq:
+                    continue
+                tq, jump = station.tq_ps, station.sjw_tq * station.tq_ps
+                quanta = (time - node.start_at) // tq       # the edge's TQ in this bit: 0 is SYNC_SEG
+                if sampling[index]:                         # before its sample point: positive phase error
+                    if quanta == 0 or drive[index] == 0:
+                        continue
+                    node.sample_at = node.start_at + station.sample_ps + min(quanta * tq, jump)
+                    push(index, node.sample_at, True)
+                else:                                       # after it: negative, the next bit starts sooner
+                    late = station.bit_ps // tq - quanta
+                    end = node.sample_at + station.bit_ps - station.sample_ps
+                    push(index, time if late * tq <= jump else end - jump, False)
+                resynced[index] = True
+
+        while True:
+            time, sample, index, seen = heapq.heappop(queue)
+            if seen != version[index]:
+                continue
+            node = leaders[index]
+            if sample:
+                if not self.busy:
+                    break
+                if time > self.limit:
+                    raise RuntimeError("the bit engine found a frame that never ends: a bug in appsim.bus.bitlevel")
+                wire = 0 if dominant else 1
+                idle = node.phase >= _IDLE
+                if self.first_error_ps is None:
+                    self._step_watched(node, wire)
+                else:
+                    node.step(wire)
+                self.busy += idle - (node.phase >= _IDLE)
+                read[index], resynced[index] = wire, False
+                push(index, node.sample_at + node.station.bit_ps - node.station.sample_ps, False)
+                continue
+            node.start_at, node.sample_at = time, time + node.station.sample_ps
+            push(index, node.sample_at, True)
+            level = node.levels[node.k] if node.k < len(node.levels) else 1
+            if level == drive[index]:
+                continue
+            drive[index] = level
+            before = dominant
+            dominant += 1 if level == 0 else -1
+            if (before == 0) != (dominant == 0):
+                self.changes.append((time, 0 if dominant else 1))
+                if dominant:
+                    edge(time, index)
+        for engine in self.engines:
+            if isinstance(engine, _Follower):
+                engine.k, engine.phase = engine.leader.k, engine.leader.phase
+
     def result(self, one_clock: bool) -> Run:
         outcomes = {}
         for engine in self.engines:
@@ -647,8 +813,11 @@ class _Run:
                 engine.out.sampled = engine.k
                 outcomes[engine.station.name] = engine.out
         leaders = self.leaders
-        return Run(outcomes, _wire(leaders, self.sof_ps, one_clock), self.first_error_ps, self.first_error,
-                   self.first_error_by, max(n.end_ps for n in leaders), max(n.idle_ps for n in leaders))
+        at_sof = [n.idle_ps for n in leaders if n.sof_in_intermission]
+        wire = self.changes if self.changes is not None else _wire(leaders, self.sof_ps, one_clock)
+        return Run(outcomes, wire, self.first_error_ps, self.first_error,
+                   self.first_error_by, max(n.end_ps for n in leaders),
+                   min(at_sof) if at_sof else max(n.idle_ps for n in leaders), bool(at_sof))
 
 
 def run_frame(sof_ps: int, stations: list[Station]) -> Run:
@@ -663,9 +832,12 @@ def run_frame(sof_ps: int, stations: list[Station]) -> Run:
     kept = _runs.get(key)
     if kept is not None:
         return _moved(*kept, sof_ps, stations)
-    run = _Run(sof_ps, stations)
+    resynchronising = any(station.sjw_tq for station in stations)
+    run = _Run(sof_ps, stations, resynchronising)
     one_clock = all(station.bit_ps == stations[0].bit_ps for station in stations)
-    if one_clock:
+    if resynchronising:
+        run.resynchronising()
+    elif one_clock:
         run.in_lock_step()
     else:
         run.by_sample_time()
@@ -699,7 +871,7 @@ def _moved(run: Run, was_ps: int, before: list[Station], sof_ps: int, stations: 
         outcomes[name] = moved
     return Run(outcomes, [(time + shift, level) for time, level in run.wire],
                None if run.first_error_ps is None else run.first_error_ps + shift, run.first_error,
-               run.first_error_by, run.end_ps + shift, run.idle_ps + shift)
+               run.first_error_by, run.end_ps + shift, run.idle_ps + shift, run.sof_in_intermission)
 
 
 def _wire(leaders: list[_Node], sof_ps: int, one_clock: bool) -> list[tuple[int, int]]:

@@ -83,8 +83,11 @@ class Controller(Protocol):
     def transmission_failed(self, buffer: str, *, tec_increment: int = 8) -> None: ...
     def frame_received(self, frame: CanFrame) -> object:
         """A valid frame for its acceptance logic; what that did with it, as the trace shows it (`str`)."""
-    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None) -> None:
-        """It detected an error as a receiver (or a silent listener); `assembled`: what it had read up to it."""
+    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None,
+                      acknowledged: bool = False) -> None:
+        """It detected an error as a receiver (or a silent listener); `assembled`: what it had read up to it;
+        `acknowledged`: it had received the frame without error up to the ACK slot and sent its ACK, so REC counts
+        down first (rule 8, `appsim.bus.bitlevel.rule_8`), then up by `rec_increment`."""
     def bus_activity(self) -> None:
         """A start of frame on the bus (wakes a sleeping controller)."""
     def bus_off_recovery(self, sequences: int) -> None: ...

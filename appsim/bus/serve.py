@@ -118,8 +118,12 @@ class ClientNode(ErrorCounters):
             self._counters(self.tec, self.rec - 1 if self.rec <= 127 else 119)
         return self.client.received(frame)
 
-    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None) -> None:
-        self._counters(self.tec, min(self.rec + rec_increment, 255))
+    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None,
+                      acknowledged: bool = False) -> None:
+        rec = self.rec
+        if acknowledged and rec:            # rule 8 first, as frame_received counts it
+            rec = rec - 1 if rec <= 127 else 119
+        self._counters(self.tec, min(rec + rec_increment, 255))
 
     def bus_activity(self) -> None: ...
 

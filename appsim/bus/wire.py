@@ -25,6 +25,7 @@ from appsim.sim import PS_PER_SECOND, Simulator, Timer
 
 SUSPEND_TRANSMISSION_BITS = 8
 BUS_IDLE_BITS = 11                  # mode changes, bus-off recovery: 11 consecutive recessive bits
+MAX_OSCILLATOR_PPM = 100_000        # `Bus.set_oscillator_error` refuses more than 10 %
 
 AnyNode = TypeVar("AnyNode", bound=Node)
 AnyPart = TypeVar("AnyPart", bound=Hashable)
@@ -90,10 +91,12 @@ class _Port(Protocol):
     def failed(self, buffer: str, tec_increment: int) -> None: ...
     def receive(self, frame: CanFrame) -> str:
         """A frame went through: take it; returns what the node did with it, for the trace."""
-    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None: ...
+    def receive_error(self, rec_increment: int, assembled: Assembled | None, acknowledged: bool) -> None: ...
     def activity(self) -> None: ...
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
         """Its bit time and sample point in ps (the bus's bit time when its rate is within tolerance)."""
+    def own_clock(self, bus_bit_ps: int) -> tuple[int, int, int, int]:
+        """Its bit time, sample point and time quantum in ps, from its own oscillator, and its SJW in TQ."""
 
 
 @dataclass(eq=False)
@@ -103,6 +106,7 @@ class _NodePort(_Port):
     node: Node
     rate_ok: bool = True
     suspend_until: int = 0
+    ppm: float = 0                  # its oscillator's error (`Bus.set_oscillator_error`)
     loop_busy_until: int = 0
     mode_timer: Timer | None = None
     controller: Controller = field(init=False, repr=False)
@@ -137,6 +141,9 @@ class _NodePort(_Port):
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
         return _clock(self.controller.bit_timing(), self.controller.fosc, bus_bit_ps, self.rate_ok)
 
+    def own_clock(self, bus_bit_ps: int) -> tuple[int, int, int, int]:
+        return oscillator_clock(self.controller.bit_timing(), self.controller.fosc, self.ppm)
+
     def pending(self) -> tuple[str, CanFrame] | None:
         buffer = self.controller.next_transmission()
         return None if buffer is None else (buffer, self.controller.frame_in(buffer))
@@ -156,8 +163,8 @@ class _NodePort(_Port):
     def receive(self, frame: CanFrame) -> str:
         return str(self.controller.frame_received(frame))
 
-    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None:
-        self.controller.receive_error(rec_increment=rec_increment, assembled=assembled)
+    def receive_error(self, rec_increment: int, assembled: Assembled | None, acknowledged: bool) -> None:
+        self.controller.receive_error(rec_increment=rec_increment, assembled=assembled, acknowledged=acknowledged)
 
     def activity(self) -> None:
         self.controller.bus_activity()
@@ -168,6 +175,13 @@ def _clock(timing: BitTiming, fosc: int, bus_bit_ps: int, rate_ok: bool) -> tupl
     """A node's bit time and sample point in ps: the bus's bit time when its rate is within tolerance."""
     bit_ps = bus_bit_ps if rate_ok else timing.bit_time_ps(fosc)
     return bit_ps, int(bit_ps * timing.sample_point)
+
+
+@functools.lru_cache(maxsize=256)
+def oscillator_clock(timing: BitTiming, fosc: int, ppm: float) -> tuple[int, int, int, int]:
+    """A node's bit time, sample point and TQ in ps, its oscillator `ppm` fast (a shorter TQ) or slow, and its SJW."""
+    tq_ps = round(timing.tq_seconds(fosc) * PS_PER_SECOND / (1 + Fraction(ppm) / 10**6))
+    return tq_ps * timing.tq_per_bit, tq_ps * (timing.tq_per_bit - timing.effective_seg2ph), tq_ps, timing.sjw
 
 
 class Outside(Protocol):
@@ -205,11 +219,16 @@ class _LinkPort(_Port):
     def started(self, buffer: str) -> None: ...
     def lost(self, buffer: str) -> None: ...
     def failed(self, buffer: str, tec_increment: int) -> None: ...
-    def receive_error(self, rec_increment: int, assembled: Assembled | None) -> None: ...
+    def receive_error(self, rec_increment: int, assembled: Assembled | None, acknowledged: bool) -> None: ...
     def activity(self) -> None: ...
 
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
         return bus_bit_ps, bus_bit_ps * 3 // 4
+
+    def own_clock(self, bus_bit_ps: int) -> tuple[int, int, int, int]:
+        """An exact oscillator, 16 TQ with the sample point at 12 and SJW 4, as the classroom's nodes."""
+        tq_ps = bus_bit_ps // 16
+        return bus_bit_ps, 12 * tq_ps, tq_ps, 4
 
     def succeeded(self, buffer: str) -> None:
         self.queue.popleft()
@@ -251,6 +270,7 @@ class Bus:
         self._arbitration: Timer | None = None
         self._idle_timer: Timer | None = None
         self.injections = Injections()
+        self._drifting = 0          # nodes whose oscillator is off: every frame then runs bit by bit
         self._kept: dict[object, object] = {}   # what events repeat (frames, outcomes, wires), stored once
 
     # ------------------------------------------------------------------ nodes
@@ -284,6 +304,21 @@ class Bus:
         port = next(p for p in self.ports if isinstance(p, _LinkPort) and p.outside is outside)
         port.queue.append(frame)
         self._schedule_arbitration(max(self.sim.time(), self.busy_until))
+
+    def set_oscillator_error(self, node: str, ppm: float) -> None:
+        """Make `node`'s oscillator `ppm` parts per million fast (positive) or slow: its bit clock, so every time
+        quantum, is that much shorter or longer (the rest of its chip keeps the kit's exact clock). While any node's
+        oscillator is off, every frame runs bit by bit, each node resynchronising within SJW (docs/errors.md); 0 puts
+        it back. An error no oscillator has (not a number, or more than 10 %) is refused (`BitTimingError`)."""
+        port = next((p for p in self.ports if p.name == node and isinstance(p, _NodePort)), None)
+        if port is None:
+            raise KeyError(f"no node named {node!r} on this bus")
+        if isinstance(ppm, bool) or not isinstance(ppm, int | float) or not abs(ppm) <= MAX_OSCILLATOR_PPM:
+            raise BitTimingError(f"an oscillator error is a number of ppm within +-{MAX_OSCILLATOR_PPM:,} (10 %): "
+                                 f"a quartz crystal is off by 100 ppm at most, a ceramic resonator by 5,000; got "
+                                 f"{ppm!r}")
+        port.ppm = ppm
+        self._drifting = sum(1 for p in self.ports if isinstance(p, _NodePort) and p.ppm)
 
     def _rate_ok(self, port: _NodePort) -> bool:
         try:
@@ -403,7 +438,7 @@ class Bus:
         ackers = tuple(p.name for p in listeners if p.mode == Mode.NORMAL)
         if isinstance(sender, _LinkPort):
             ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
-        plain = (bool(ackers) and all(e[3] == frame for e in same_id)
+        plain = (bool(ackers) and not self._drifting and all(e[3] == frame for e in same_id)
                  and all(p.rate_ok for p in listeners) and all(e[1].rate_ok for e in entries))
         injections = {} if not self.injections else self.injections.offer(
             frame, [Taking(e[1].name, True, True) for e in entries]
@@ -457,9 +492,13 @@ class Bus:
         frames = {id(e[1]): e[3] for e in entries}
         stations = []
         for port in ports:
-            bit_ps, sample_ps = port.clock(self.bit_ps)
+            tq_ps = sjw = 0
+            if self._drifting:
+                bit_ps, sample_ps, tq_ps, sjw = port.own_clock(self.bit_ps)
+            else:
+                bit_ps, sample_ps = port.clock(self.bit_ps)
             stations.append(Station(port.name, port.mode == Mode.LISTEN_ONLY, bit_ps, sample_ps, port.tec, port.rec,
-                                    frames.get(id(port)), injections.get(port.name, ())))
+                                    frames.get(id(port)), injections.get(port.name, ()), tq_ps, sjw))
         run = run_frame(start, stations)
         self.injections.fired(injections, run.outcomes)
         buffers = {id(e[1]): e[2] for e in entries}
@@ -470,7 +509,8 @@ class Bus:
         sender, frame = next(((e[1], e[3]) for e in entries if run.outcomes[e[1].name].lost_at_ps is None),
                              (entries[0][1], entries[0][3]))
         end = run.end_ps
-        self.busy_until = max(run.idle_ps, end + INTERMISSION_BITS * self.bit_ps)
+        self.busy_until = (run.idle_ps if run.sof_in_intermission
+                           else max(run.idle_ps, end + INTERMISSION_BITS * self.bit_ps))
         error = self._describe(run, entries, ports)
         flag_at_bit = None if run.first_error_ps is None else (run.first_error_ps - start) // self.bit_ps
 
@@ -481,6 +521,8 @@ class Bus:
                 if id(port) in buffers and outcome.lost_at_ps is None:
                     if outcome.transmitted:
                         port.succeeded(buffers[id(port)])
+                        if outcome.errors:       # in a frame nobody sent, begun in its intermission
+                            port.receive_error(outcome.rec_increment, outcome.assembled, False)
                     else:
                         port.failed(buffers[id(port)], tec_increment=outcome.tec_increment)
                     self._after_transmit(port)
@@ -513,7 +555,8 @@ class Bus:
         if outcome.received is not None:
             done.append(port.receive(outcome.received))
         if outcome.errors:
-            port.receive_error(outcome.rec_increment, outcome.assembled)
+            port.receive_error(outcome.rec_increment, outcome.assembled,
+                               outcome.acknowledged and outcome.received is None)
             done.append("; ".join(outcome.errors))
         return "; ".join(done) or "nothing"
 
@@ -533,6 +576,9 @@ class Bus:
         wrong = [p.name for p in ports if not p.rate_ok]
         if wrong:
             why += f"; bit timing does not match the bus: {', '.join(wrong)}"
+        drifting = [f"{p.name} {p.ppm:+,g} ppm" for p in ports if isinstance(p, _NodePort) and p.ppm]
+        if drifting:
+            why += f"; oscillators off: {', '.join(drifting)}"
         return why
 
     def _after_transmit(self, port: _Port) -> None:

@@ -1,5 +1,5 @@
-"""Pictures for the notebooks: a frame's bits on the wire, arbitration, one bit's time segments, the bus over time,
-the error states, a register's bits.
+"""Pictures for the notebooks: a frame's bits on the wire, arbitration, one bit's time segments and a
+resynchronisation, the bus over time, the error states, a register's bits.
 
 Each function draws on `ax` (a new figure when None) and returns the Figure, as `GLCD.picture` does.
 """
@@ -283,6 +283,56 @@ def bit_segments(timing: BitTiming, fosc: int, ax: Axes | None = None) -> Figure
     ax.set_xlabel(f"time quanta (1 TQ = 2 x (BRP<5:0> + 1) / Fosc = 2 x {timing.brp} / Fosc = {tq_us:g} µs)")
     ax.set_title(f"one bit = {timing.tq_per_bit} TQ = {timing.tq_per_bit * tq_us:g} µs: "
                  f"{float(timing.bit_rate(fosc)) / 1000:g} kbit/s")
+    return _figure(ax)
+
+
+def resynchronisation(timing: BitTiming, late_tq: int, early_tq: int, ax: Axes | None = None) -> Figure:
+    """What one resynchronisation does, in TQ (ISO 11898-1 bit timing): above, the edge comes `late_tq` after the
+    node's Sync segment (its clock runs early), and Phase1 is lengthened by min(late, SJW), so the sample point moves
+    that much later; below, it comes `early_tq` before the node's bit ends (in Phase2: its clock runs late), and Phase2
+    is shortened by min(early, SJW), so the next bit starts that much sooner."""
+    from matplotlib.patches import Rectangle
+
+    ax = _axes(ax, (12, 3.6))
+    sjw, n = timing.sjw, timing.tq_per_bit
+    sample = SYNC_SEG_TQ + timing.prseg + timing.seg1ph
+    lengthen, shorten = min(late_tq, sjw), min(early_tq, sjw)
+    rows = ((2.2, "edge late: Phase1 + " + f"{lengthen} TQ", (("Sync", SYNC_SEG_TQ), ("Prop", timing.prseg),
+                                                          ("Phase1", timing.seg1ph + lengthen),
+                                                          ("Phase2", timing.effective_seg2ph)), late_tq),
+            (0.4, "edge early: Phase2 - " + f"{shorten} TQ", (("Sync", SYNC_SEG_TQ), ("Prop", timing.prseg),
+                                                              ("Phase1", timing.seg1ph),
+                                                              ("Phase2", timing.effective_seg2ph - shorten)),
+             n - early_tq))
+    for y, title, segments, edge in rows:
+        ax.add_patch(Rectangle((0, y + 1.0), n, 0.12, facecolor="none", edgecolor="grey", linestyle=":",
+                               gid="nominal"))
+        ax.text(0.1, y + 1.2, f"nominal bit, {n} TQ", fontsize=7, va="bottom", color="grey")
+        start = 0
+        for name, width in segments:
+            ax.add_patch(Rectangle((start, y), width, 0.9, facecolor=SEGMENT_COLOURS[name], edgecolor="black",
+                                   gid="segment"))
+            ax.text(start + width / 2, y + 0.45, f"{name}\n{width} TQ", ha="center", va="center", fontsize=8)
+            start += width
+        ax.plot([edge, edge], [y - 0.15, y + 1.2], color="black", linestyle="--", linewidth=1.5, gid="edge")
+        ax.text(edge, y - 0.3, "edge", ha="center", fontsize=8)
+        moved = sample + (lengthen if segments[2][1] > timing.seg1ph else 0)
+        ax.plot([sample, sample], [y, y + 0.9], color="red", linestyle=":", linewidth=1.5, gid="nominal sample")
+        ax.plot([moved, moved], [y, y + 0.9], color="red", linewidth=2.5, gid="sample point")
+        ax.text(-0.3, y + 0.45, title, ha="right", va="center", fontsize=9)
+    ax.annotate("", xy=(sample + lengthen, 3.45), xytext=(sample, 3.45),
+                arrowprops={"arrowstyle": "->", "color": "red"})
+    ax.text(sample + lengthen / 2, 3.55, f"sample point moved {lengthen} TQ (at most SJW = {sjw})", ha="center",
+            fontsize=8, color="red")
+    ax.annotate("", xy=(n - shorten, 1.75), xytext=(n, 1.75), arrowprops={"arrowstyle": "->", "color": "tab:blue"})
+    ax.text(n - shorten / 2, 1.85, f"next bit {shorten} TQ sooner", ha="center", fontsize=8, color="tab:blue")
+    ax.set_xlim(-0.5, n + lengthen + 0.5)
+    ax.set_ylim(-0.1, 3.8)
+    ax.set_xticks(range(n + lengthen + 1))
+    ax.set_yticks([])
+    ax.set_xlabel("time quanta from the node's own Sync segment")
+    ax.set_title(f"resynchronisation with SJW {sjw} TQ: edge {late_tq} TQ late (above), {early_tq} TQ early (below); "
+                 f"dotted red: where the node would have sampled")
     return _figure(ax)
 
 

@@ -1,5 +1,6 @@
 """The tries that end notebooks 00 and 01, judged line by line as the exercises' checks are: your prediction of the
-error counters against the kit's run, and a bit timing of your own (BRGCON1..3) on a bus at 250 kbit/s.
+error counters against the kit's run, and a bit timing of your own (BRGCON1..3) on a bus at 250 kbit/s; and 01's SJW
+try, two oscillators off in opposite directions.
 """
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from appsim.board.app023 import APP023
-from appsim.bus.wire import Bus, BusEvent
+from appsim.bus.wire import Bus, BusEvent, oscillator_tolerance
 from appsim.can.bittiming import BitTiming
 from appsim.chip.clock import FOSC_HZ
 from appsim.chip.sfr import TMR1IF
@@ -242,3 +243,90 @@ def _clean(bus: Bus) -> CheckResult:
     first = f" The first: {errors[0].error}, in a frame from {errors[0].sender}." if errors else ""
     return CheckResult(CLEAN, False, f"{len(errors)} error frames in {len(bus.trace)};" + " ".join(
         f" {name} TEC {tec} REC {rec}" for name, (tec, rec) in moved.items()) + "." + first)
+
+
+# ------------------------------------------------------------------ 01's SJW try: two oscillators off, long frames
+DRIFT_FRAMES = 12
+CLASSROOM_TIMING = BitTiming(sjw=4, brp=10, seg1ph=8, seg2ph=4, prseg=3)     # CANInitialize(4, 10, 8, 4, 3, ...)
+DRIFT_PAYLOADS = (bytes([0x07, 0xC1, 0xF0, 0x7C, 0x1F, 0x07, 0xC1, 0xF0]),
+                  bytes([0x0F, 0x83, 0xE0, 0xF8, 0x3E, 0x0F, 0x83, 0xE0]),
+                  b"\xff" * 8, bytes(8), b"\x55" * 8, b"\x3c" * 8)
+"""Long frames: first the stuffing's worst cases for resynchronisation (a recessive-to-dominant edge only every 10
+bits: 00000 11111 00000 ...), then all ones and all zeros (an edge at each stuff bit, every 6 bits), an edge every
+2 bits, and every 8."""
+DRIFT_IDS = tuple(range(0x7F0, 0x7E9, -1))         # one after another, each frame's own (AN738 fills TXB0..TXB2)
+
+
+@dataclass(frozen=True)
+class Drift:
+    """Two nodes with `CANInitialize(sjw, 10, 8, 4, 3, ...)`, one's oscillator `ppm` fast, the other's as slow: the
+    tolerance the standard gives each for that SJW, and how many of the fast one's long frames the slow one got."""
+
+    sjw: int
+    ppm: float
+    timing: BitTiming
+    sent: int
+    received: int
+    errors: tuple[str, ...]
+    refused: str = ""                   # why this SJW or ppm cannot be tried, in the workshop's words
+
+    def __str__(self) -> str:
+        if self.refused:
+            return self.refused
+        return self._report()
+
+    __repr__ = __str__
+
+    @property
+    def tolerance_ppm(self) -> float:
+        return float(oscillator_tolerance(self.timing)) * 1e6
+
+    def _report(self) -> str:
+        timing = self.timing
+        n, ps2 = timing.tq_per_bit, timing.effective_seg2ph
+        sjw_rule = self.sjw / (20 * n)
+        phase_rule = min(timing.seg1ph, ps2) / (2 * (13 * n - ps2))
+        lines = [f"SJW {self.sjw} TQ, {n} TQ a bit: each oscillator may be off by "
+                 f"min(SJW / (20 x {n}) = {sjw_rule:.2%}, min(PS1, PS2) / (2 x (13 x {n} - {ps2})) = "
+                 f"{phase_rule:.2%}) = {self.tolerance_ppm:,.0f} ppm",
+                 f"yours: one node {self.ppm:+,g} ppm, the other {-self.ppm:+,g} ppm "
+                 f"({abs(self.ppm) / self.tolerance_ppm:.2f} x the tolerance each)",
+                 f"{self.received} of {self.sent} long frames received, {len(self.errors)} error frames"]
+        lines += [f"  {error}" for error in self.errors[:3]]
+        if len(self.errors) > 3:
+            lines.append(f"  ... and {len(self.errors) - 3} more")
+        return "\n".join(lines)
+
+
+def _drifting_sender(sjw: int) -> None:
+    CANInitialize(sjw, 10, 8, 4, 3, ALL_MSG)
+    for n in range(DRIFT_FRAMES):
+        payload = DRIFT_PAYLOADS[n % len(DRIFT_PAYLOADS)]
+        while not CANSendMessage(DRIFT_IDS[n % len(DRIFT_IDS)], list(payload), len(payload), STANDARD):
+            pass
+    while True:
+        CANIsRxReady()
+
+
+def _drifting_receiver(sjw: int, got: list[bytes]) -> None:
+    CANInitialize(sjw, 10, 8, 4, 3, CAN_CONFIG_FLAGS.CAN_CONFIG_VALID_STD_MSG)
+    while True:
+        if CANIsRxReady():
+            got.append(bytes(CANReceiveMessage().data))
+
+
+def oscillator_drift(sjw: int, ppm: float) -> Drift:
+    """`CANInitialize(sjw, 10, 8, 4, 3, ...)` on two nodes of the classroom's bus, the sender's oscillator `ppm`
+    fast and the receiver's `ppm` slow (`Bus.set_oscillator_error`): 12 long frames from one to the other."""
+    bus = Bus(Simulator())
+    got: list[bytes] = []
+    try:
+        timing = BitTiming(sjw=sjw, brp=10, seg1ph=8, seg2ph=4, prseg=3)
+        APP023(bus, "fast").run(lambda: _drifting_sender(sjw))
+        APP023(bus, "slow").run(lambda: _drifting_receiver(sjw, got))
+        bus.set_oscillator_error("fast", ppm)
+        bus.set_oscillator_error("slow", -ppm)
+    except (BitTimingError, TypeError) as error:
+        return Drift(sjw, ppm, CLASSROOM_TIMING, 0, 0, (), f"Not tried: {error}.")
+    bus.sim.run(until=PS_PER_SECOND * 3 // 100)                         # 30 ms: 12 frames of 8 bytes and retries
+    return Drift(sjw, ppm, timing, DRIFT_FRAMES, len(got), tuple(e.error for e in bus.trace if e.error))

@@ -8,7 +8,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from appsim.bus.bitlevel import Assembled
+from appsim.bus.bitlevel import Assembled, rule_8
 from appsim.bus.controller import ErrorCounters, Mode, Wire
 from appsim.can.bittiming import BitTiming
 from appsim.can.frame import CanFrame
@@ -379,7 +379,7 @@ class ECAN(ErrorCounters):
         """A valid frame has reached the MAB: filter it and route it to RXB0, RXB1 or overflow."""
         rec = self.rec
         if rec:
-            self._set_counters(self.tec, rec - 1 if rec <= 127 else 127)
+            self._set_counters(self.tec, rule_8(rec))
         reception = self._accept(frame)
         if reception.filter is not None or self.rec != rec:     # a rejected frame changes nothing else
             self.changed()
@@ -437,11 +437,13 @@ class ECAN(ErrorCounters):
             self._setbits("PIR3", R.WAKIF)
             self.changed()
 
-    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None) -> None:
-        """A receiver detected a CRC, stuff, form or bit error: IRXIF sets, REC += the rules' increment. A buffer in
-        error-recognition mode (RXM = 11) stores what was assembled up to the error (DS39500 §5.5)."""
+    def receive_error(self, *, rec_increment: int = 1, assembled: Assembled | None = None,
+                      acknowledged: bool = False) -> None:
+        """A receiver detected a CRC, stuff, form or bit error: IRXIF sets, REC += the rules' increment (after rule 8's
+        count down when it had ACKed the frame). A buffer in error-recognition mode (RXM = 11) stores what was
+        assembled up to the error (DS39500 §5.5)."""
         self._setbits("PIR3", R.IRXIF)
-        self._set_counters(self.tec, self.rec + rec_increment)
+        self._set_counters(self.tec, (rule_8(self.rec) if acknowledged else self.rec) + rec_increment)
         if assembled is not None:
             self._store_invalid(assembled)
         self.changed()
