@@ -2,8 +2,8 @@
 core taking interrupts between two instructions.
 
 Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
-from the same place in the firmware, with nothing changed since) parks the firmware until a
-peripheral event changes something it reads: a busy-wait costs one loop turn per event, not per cycle.
+from the same place in the firmware, with nothing changed since, not even a delay of its own) parks the firmware
+until a peripheral event changes something it reads: a busy-wait costs one loop turn per event, not per cycle.
 """
 from __future__ import annotations
 
@@ -251,6 +251,14 @@ class PIC18F8680(SFRNames):
                 self._spend_interruptibly(process, cycles * self.tcy_ps)
             else:
                 process.spend(cycles * self.tcy_ps)
+
+    def wait_cycles(self, cycles: int) -> None:
+        """Time the firmware lets pass on purpose (C18's delays), spent as `spend_cycles`. A loop that waits so between
+        its reads sees time pass (its timeout comes), so a wait counts as a change: the reads after it are a new
+        look, never a polling loop's read again (`_read_again`), and the loop turns as it would on the chip."""
+        self.spend_cycles(cycles)
+        if self.process is not None and _getcurrent() is self.process:
+            self.version += 1
 
     # -------------------------------------------------------------- interrupts
     def _update_request(self) -> None:
