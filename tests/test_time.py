@@ -136,6 +136,28 @@ def test_a_loop_that_waits_between_its_reads_sees_a_frame_at_its_next_look_not_s
     assert 0 < answer.start_ps - first.end_ps <= PS_PER_SECOND // 1000 + PS_PER_SECOND // 10_000
 
 
+def test_a_loop_that_reads_timer1_for_its_timeout_is_not_parked_its_timeout_comes(world):
+    """No delay, but Timer1 (1:8, 1,250 counts a millisecond) tells the loop when 40 ms are up: a register that time
+    changes is time the loop sees pass, so it never parks, and it gives up 40 ms later."""
+    seen = []
+
+    def waiter():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_8 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)
+        WriteTimer1(0)
+        while not CANIsRxReady() and ReadTimer1() < 40 * 1250:
+            pass
+        seen.append(ReadTimer1() // 1250)
+        CANSendMessage(0x1F0, [1], 1, CAN_TX_STD_FRAME)
+
+    world.node("waiter", waiter)
+    world.node("listener", lambda: CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG))
+    world.run(0.1)
+    assert seen == [40], "the loop reading Timer1 never timed out: it was parked as a polling loop"
+    (sent,) = world.bus.frames()
+    assert 0.040 < sent.start_ps / PS_PER_SECOND < 0.0405
+
+
 def test_a_pure_spin_with_a_count_is_still_parked(world):
     """No delay in the loop: it reads, counts and reads again, with nothing changed, so it parks until the frame
     (its count says a handful of turns, not the 100,000 the chip would make in 25 ms)."""
