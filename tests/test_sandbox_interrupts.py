@@ -271,6 +271,85 @@ def test_polling_firmware_talks_to_the_grader_as_it_did_before_interrupts(sandbo
     assert all(trips[exercise] <= before[exercise] for exercise in before), trips
 
 
+# ====================================================================== a loop that waits between its reads
+
+WAITS = {
+    "delay": """
+            count = 0
+            while not CANIsRxReady() and count < @TRIES@:
+                Delay10KTCYx(1)
+                count += 1""",
+    "timer1": """
+            OpenTimer1(@TIMER1_OFF@)
+            WriteTimer1(0)
+            while not CANIsRxReady() and ReadTimer1() < @TRIES@ * 1250:
+                pass
+            count = ReadTimer1() // 1250                # Timer1 at 1:8 counts 1,250 a millisecond""",
+}
+
+
+def timeout_loop(filter_id: int, tries: int, wait: str = "delay") -> str:
+    """Ex2-like firmware whose filters take only `filter_id`: it waits for such a frame with a timeout of `tries` ms,
+    by `WAITS[wait]` (1 ms, Delay10KTCYx(1), between two looks; or reading Timer1 until it says so), then sends its
+    frame with the milliseconds it waited in data byte 3 and says on the LCD which came first."""
+    waiting = WAITS[wait].replace("@TRIES@", str(tries)).replace("@TIMER1_OFF@", TIMER1_ON.replace("TIMER_INT_ON",
+                                                                                                    "TIMER_INT_OFF"))
+    return ex2_firmware(f"""
+        def main():
+            GLCD_Initial()
+            @CAN@
+            CANSetOperationMode(CAN_OP_MODE_CONFIG)
+            for mask in (CAN_MASK_B1, CAN_MASK_B2):
+                CANSetMask(mask, 0x7FF, CAN_CONFIG_STD_MSG)
+            for each in (CAN_FILTER_B1_F1, CAN_FILTER_B1_F2, CAN_FILTER_B2_F1, CAN_FILTER_B2_F2, CAN_FILTER_B2_F3,
+                         CAN_FILTER_B2_F4):
+                CANSetFilter(each, {filter_id:#x}, CAN_CONFIG_STD_MSG)
+            CANSetOperationMode(CAN_OP_MODE_NORMAL){waiting}
+            TxData[3] = count
+            CANSendMessage(MESSAGE_ID1, TxData, 5, CAN_TX_STD_FRAME)
+            setcurGLCD(1, 1)
+            putrsGLCD("RECEIVED" if CANIsRxReady() else "TIMED OUT")
+            while True:
+                Delay10KTCYx(100)
+        """)
+
+
+def sent_frames(trial_of) -> tuple[list, str]:
+    """The good frames of a trial of Ex2's check, and its LCD."""
+    trial: Trial = trial_of()
+    try:
+        ex2_check.run(trial)
+    except Fatal:
+        pass
+    return [event for event in trial.bus.trace if not event.error], trial.board.glcd.text()
+
+
+@pytest.mark.parametrize("wait", sorted(WAITS))
+@pytest.mark.parametrize("filter_id, tries, lcd", [
+    (0x7EF, 40, "TIMED OUT"),           # nobody sends 0x7EF: the timeout comes, 40 ms later
+    (0x088, 250, "RECEIVED"),           # the master's broadcast comes first, seen at the loop's next look
+])
+def test_a_loop_that_waits_between_its_reads_times_out_the_same_sandboxed_as_in_process(sandbox, tmp_path,
+                                                                                        monkeypatch, filter_id, tries,
+                                                                                        lcd, wait):
+    """A delay between two reads, or a read of Timer1, is time the loop sees pass, in the grader's sandbox as on the
+    board: the child does not ask for a read that would park, the board does not park it, and the loop ends as on the
+    chip, by its timeout or at its first look after the frame came, with the milliseconds it counted."""
+    source = timeout_loop(filter_id, tries, wait)
+    local, remote = both_ways(sandbox, tmp_path, monkeypatch, "ex2", source, ex2_check.run)
+    assert remote == local
+    frames, shown = sent_frames(lambda: prepare("ex2", EXERCISE_FILES["ex2"], SEED))
+    assert shown.splitlines()[0].strip() == lcd, shown
+    (own,) = [event for event in frames if event.frame.can_id == 0x100 and not event.frame.remote]
+    count = own.frame.data[3]
+    if lcd == "TIMED OUT":
+        assert count == tries
+        return
+    first = next(event for event in frames if event.frame.can_id == 0x088)
+    assert 2 < count < tries, f"it waited {count} ms: parked, it would have counted 2 waits"
+    assert 0 < own.start_ps - first.end_ps <= 1_100_000_000, "it sends at its first look after the frame, <= 1 ms"
+
+
 # ====================================================================== strict decoding
 
 def forged(message: str) -> str:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import subprocess
 import sys
@@ -84,6 +85,100 @@ def test_a_parked_loop_sleeps_through_changes_it_does_not_read(world):
     world.run(0.3)
     assert overflows == [1], "Timer1 did overflow while the loop waited"
     assert turns and turns[0] < 10, f"the loop turned {turns} times: overflows it never reads woke it"
+
+
+def timeout_loop(tries: int, seen: list[tuple[int, int]]):
+    """Firmware: waits for a frame with a timeout, 1 ms (Delay10KTCYx(1)) between two looks, then says which came
+    first: (tries waited, the identifier received or -1), and a frame 0x1F0 whose data is the tries waited."""
+    def main():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        count = 0
+        while not CANIsRxReady() and count < tries:
+            Delay10KTCYx(1)
+            count += 1
+        seen.append((count, CANReceiveMessage().id if CANIsRxReady() else -1))
+        CANSendMessage(0x1F0, [count], 1, CAN_TX_STD_FRAME)
+    return main
+
+
+def test_a_loop_that_waits_between_its_reads_is_not_parked_its_timeout_comes(world):
+    """Nothing comes: the loop looks 50 times, 1 ms apart, and gives up 50 ms later, as on the chip (a delay is time
+    the loop sees pass, so it is no polling loop to park)."""
+    seen: list[tuple[int, int]] = []
+    world.node("waiter", timeout_loop(50, seen))
+    world.node("listener", lambda: CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG))    # ACKs, sends nothing
+    world.run(0.2)
+    assert seen == [(50, -1)], "the timeout loop never timed out: it was parked as a polling loop"
+    (sent,) = world.bus.frames()
+    assert sent.frame.can_id == 0x1F0 and sent.frame.data == bytes([50])
+    assert 0.050 < sent.start_ps / PS_PER_SECOND < 0.0505, "50 waits of 1 ms, then the frame"
+
+
+def test_a_loop_that_waits_between_its_reads_sees_a_frame_at_its_next_look_not_sooner(world):
+    """The frame ends at about 25 ms: the loop sees it at its next look, after the 1 ms wait it is in, and counts the
+    waits it made; the frame it sends comes up to 1 ms after the one it waited for, not at once."""
+    seen: list[tuple[int, int]] = []
+
+    def sender():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        Delay10KTCYx(25)
+        CANSendMessage(0x100, [1, 2, 3], 3, CAN_TX_STD_FRAME)
+
+    world.node("waiter", timeout_loop(200, seen))
+    world.node("sender", sender)
+    world.run(0.2)
+    first, answer = world.bus.frames()
+    assert first.frame.can_id == 0x100 and answer.frame.can_id == 0x1F0
+    (count, received), = seen
+    assert received == 0x100 and answer.frame.data == bytes([count])
+    waited_ms = first.end_ps * 1000 / PS_PER_SECOND
+    assert count == math.ceil(waited_ms - 0.01), (count, waited_ms)      # the waits before it, each 1 ms (and a CALL)
+    assert 0 < answer.start_ps - first.end_ps <= PS_PER_SECOND // 1000 + PS_PER_SECOND // 10_000
+
+
+def test_a_loop_that_reads_timer1_for_its_timeout_is_not_parked_its_timeout_comes(world):
+    """No delay, but Timer1 (1:8, 1,250 counts a millisecond) tells the loop when 40 ms are up: a register that time
+    changes is time the loop sees pass, so it never parks, and it gives up 40 ms later."""
+    seen = []
+
+    def waiter():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_8 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)
+        WriteTimer1(0)
+        while not CANIsRxReady() and ReadTimer1() < 40 * 1250:
+            pass
+        seen.append(ReadTimer1() // 1250)
+        CANSendMessage(0x1F0, [1], 1, CAN_TX_STD_FRAME)
+
+    world.node("waiter", waiter)
+    world.node("listener", lambda: CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG))
+    world.run(0.1)
+    assert seen == [40], "the loop reading Timer1 never timed out: it was parked as a polling loop"
+    (sent,) = world.bus.frames()
+    assert 0.040 < sent.start_ps / PS_PER_SECOND < 0.0405
+
+
+def test_a_pure_spin_with_a_count_is_still_parked(world):
+    """No delay in the loop: it reads, counts and reads again, with nothing changed, so it parks until the frame
+    (its count says a handful of turns, not the 100,000 the chip would make in 25 ms)."""
+    turns = []
+
+    def spinner():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        count = 0
+        while not CANIsRxReady() and count < 10**9:
+            count += 1
+        turns.append(count)
+
+    def sender():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        Delay10KTCYx(25)
+        CANSendMessage(0x100, [1], 1, CAN_TX_STD_FRAME)
+
+    world.node("spinner", spinner)
+    world.node("sender", sender)
+    world.run(0.1)
+    assert turns and turns[0] < 10, turns
 
 
 def test_seven_node_trace_is_identical_in_separate_processes_even_under_load():

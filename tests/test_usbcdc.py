@@ -13,6 +13,7 @@ import serial
 from appsim.board.app023 import APP023
 from appsim.board.usbcdc import LEFT, NOBODY, UsbCdc
 from appsim.bus.wire import Bus
+from appsim.chip import usart
 from appsim.firmware import *
 from appsim.sim import PS_PER_SECOND, Simulator, ps
 
@@ -283,3 +284,95 @@ def test_after_the_run_the_port_lingers_until_its_program_closes_it_so_the_progr
     board_bytes = read[0].removesuffix(b"# over\r\n")
     assert board_bytes != read[0] and board_bytes.endswith(b"\n"), "the notice on a line of its own, at the end"
     assert numbers(board_bytes.removesuffix(b"\r\n")), "after the board's lines (the last one cut by the end)"
+
+
+# ------------------------------------------------------------------ its UART reads the line as the terminal does
+
+def sending(text: bytes, config: int, spbrg: int, gap_ms: int = 0):
+    """Firmware: after 5 ms, sends `text` with its USART at `config`/`spbrg`, back to back or `gap_ms` apart."""
+    def main():
+        OpenUSART(config, spbrg)
+        Delay10KTCYx(5)
+        for byte in text:
+            while BusyUSART():
+                pass
+            WriteUSART(byte)
+            if gap_ms:
+                Delay1KTCYx(10 * gap_ms)
+        while True:
+            Delay10KTCYx(100)
+    return main
+
+
+def through_the_bridge(main, seconds: float = 0.3) -> tuple[bytes, list[usart.Received], UsbCdc]:
+    """What a program on the bridge's port reads of `main`'s output, what the notebook's terminal decodes of the same
+    TX line (`usart.decode`, as `station.terminal()` does: bytes and framing errors), and the bridge."""
+    sim = Simulator()
+    board = APP023(Bus(sim), "board")
+    line = []
+    board.usb.listeners.append(lambda byte, time_ps: line.append(
+        (time_ps - board.usart.frame_ps(), byte, board.usart.bit_ps())))
+    usb = UsbCdc(board, transport="socket")
+    with usb, serial.serial_for_url(usb.url, timeout=0.5) as port:
+        run(sim, 0.001, usb.poll)               # the program is served before the board sends
+        board.run(main)
+        run(sim, seconds, usb.poll)
+        got = port.read(usb.to_pc) if usb.to_pc else b""
+    return got, usart.decode(line), usb
+
+
+def shown(decoded: list[usart.Received]) -> bytes:
+    return bytes(received.data for received in decoded)
+
+
+FAST = (LINK_19200[0], 64)                                  # 38,462 baud: twice as fast as the bridge reads
+SLOW = (LINK_19200[0] & USART_BRGH_LOW, 64)                 # 9,615 baud: half as fast
+SLOWEST = (LINK_19200[0] & USART_BRGH_LOW, 255)             # 2,441 baud: a NUL holds the line low 3.7 ms, a break
+
+
+def test_a_line_split_across_a_slow_firmwares_writes_reaches_the_program_whole_as_the_terminal_shows_it():
+    text = b"0x088 DLC 5 01 02 03 01 FF\r\n"
+    got, terminal, usb = through_the_bridge(sending(text, *LINK_19200, gap_ms=7))
+    assert got == shown(terminal) == text and not usb.misread and usb.lost_to_pc == 0
+
+
+@pytest.mark.parametrize("gap_ms", [0, 2])
+def test_at_another_baud_rate_the_program_reads_the_garbage_the_terminal_shows(gap_ms):
+    """At 38,462 baud the bridge's UART at 19,200 reads each frame over two of the board's: back to back, a byte's
+    bits run into the next one's; 2 ms apart, the idle line does. The program gets what the terminal shows, either
+    way, and the bridge counts every byte as misread."""
+    text = b"APP023 CAN monitor\r\n"
+    got, terminal, usb = through_the_bridge(sending(text, *FAST, gap_ms=gap_ms))
+    assert got == shown(terminal) and got != text, (got, terminal)
+    assert usb.misread == {38_462: len(text)}
+
+
+def test_back_to_back_bytes_at_another_rate_run_into_each_other_on_the_port_too():
+    """The same text, back to back and 2 ms apart, reads differently at 38,462 baud: the line as a whole decides
+    (read byte by byte, each from its own start bit, both would read the same)."""
+    text = b"APP023 CAN monitor\r\n"
+    back_to_back, _, _ = through_the_bridge(sending(text, *FAST))
+    apart, _, _ = through_the_bridge(sending(text, *FAST, gap_ms=2))
+    assert back_to_back != apart
+
+
+def test_at_half_the_rate_a_data_bit_is_taken_for_a_start_bit_on_the_port_as_in_the_terminal():
+    """At 9,615 baud each of the board's bits lasts two of the bridge's: it reads a byte in the first half of the
+    board's frame, and a falling edge among that frame's own data bits starts the next, so the program gets more
+    bytes than the board sent, with framing errors, as the terminal shows."""
+    text = b"\x55\x33\x0f"
+    got, terminal, usb = through_the_bridge(sending(text, *SLOW, gap_ms=2))
+    assert got == shown(terminal) and len(got) > len(text), (got, terminal)
+    assert any(received.framing_error for received in terminal)
+    assert usb.misread == {9_615: len(text)}
+
+
+def test_a_break_a_nul_at_2441_baud_is_one_nul_with_a_framing_error_on_the_port_as_in_the_terminal():
+    """The NUL holds the line low for 3.7 ms, 71 of the bridge's bits: it reads one 0x00 with its stop bit low (a
+    framing error), then waits for the line to rise and fall again. The 'A' 5 ms later (0x41: start, 1, five 0s, 1,
+    0) is two bytes of its own: 0x80 (its start bit, then bit 0 high), 0x00 with a framing error (bits 1..5, 2 ms
+    low), 0x80 again (bit 7 low, then the stop bit)."""
+    got, terminal, usb = through_the_bridge(sending(b"\x00A", *SLOWEST, gap_ms=5))
+    assert got == shown(terminal) == b"\x00\x80\x00\x80", (got, terminal)
+    assert [received.framing_error for received in terminal] == [True, False, True, False]
+    assert usb.misread == {2_441: 2}

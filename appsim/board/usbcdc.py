@@ -14,7 +14,7 @@ from collections import Counter
 from typing import Literal
 
 from appsim.board.app023 import APP023
-from appsim.chip.usart import sample_frame
+from appsim.chip.usart import LineReader
 from appsim.sim import PS_PER_SECOND, Timer
 
 if sys.platform != "win32":                  # Windows has no pseudo-terminals: it takes the socket transport
@@ -36,7 +36,6 @@ LINGER_POLL_S = 0.05           # after the run: how often `linger` looks whether
 NOBODY = "no program had the port open"
 LEFT = "meant for a program that had left"
 FULL = "the program was not reading and its buffer was full"
-NO_START_BIT = "the bridge's UART saw no start bit where it looked (the board's USART runs at another baud rate)"
 # Why bytes from the PC never reached the board.
 NOT_TAKEN = "the board's USART did not take them (receiver off, or OERR: the firmware did not read RCREG in time)"
 UNPLUGGED = "still in the bridge when it was unplugged"
@@ -55,6 +54,11 @@ class UsbCdc:
     so a PC that writes faster waits in its `write()`, and memory stays bounded whatever it writes.
     The board's link has no flow control: bytes the board's USART does not take (receiver off, or
     OERR because the firmware did not read RCREG in time) are lost, and `lost_to_board` counts them.
+
+    Its UART (19200 8N1) reads the board's TX line as a whole, as it comes (`appsim.chip.usart.LineReader`, the rule
+    the notebook's terminal decodes a run's line by): the board's bytes as sent when its USART runs at 19200 baud; at
+    another rate what a real receiver reads there, garbage, framing errors and bytes running into each other, and
+    `misread` counts the board's bytes it did not read as sent.
 
     One program at a time. It gets whole lines from the board, from the first line start after it came
     (a line is over at CR, LF or BELL, when the board has been silent for `ANSWER_PS`, or after `LONGEST_LINE` bytes);
@@ -86,7 +90,8 @@ class UsbCdc:
         self.to_pc = 0                         # bytes from the board that a PC program got
         self.why_lost: Counter[str] = Counter()  # bytes from the board that no program got, by reason
         self.to_board = 0                      # bytes from the PC the bridge took
-        self.misread: Counter[int] = Counter()  # bytes from the board its UART misread, by the board's baud rate
+        self._reader = LineReader(self.end.baud)   # the bridge's UART on the board's TX line
+        self._reading: Timer | None = None     # when the line it is reading a byte from is known far enough
         self.closed = False
         self._unsent = 0                       # bytes from the PC still in the OUT endpoint when it was unplugged
         self._out = bytearray()                # the OUT endpoint
@@ -106,6 +111,11 @@ class UsbCdc:
         return sum(self.why_lost.values())
 
     @property
+    def misread(self) -> Counter[int]:
+        """Bytes from the board its UART did not read as sent, by the board's baud rate."""
+        return self._reader.misread
+
+    @property
     def lost_to_board(self) -> int:
         """Bytes a PC program wrote that the board never received."""
         return self.end.lost + self._unsent
@@ -117,10 +127,30 @@ class UsbCdc:
                 or self._line_bytes >= LONGEST_LINE)
 
     def _from_board(self, sent: int, time_ps: int) -> None:
-        byte = self._as_read(sent)
-        if byte is None:
-            self._lose(NO_START_BIT, time_ps)
-            return
+        """A byte's stop bit left the board's USART: the line is known up to now."""
+        usart = self.end.usart
+        self._reader.send((time_ps - usart.frame_ps(), sent, usart.bit_ps()))
+        self._read(time_ps)
+
+    def _read(self, until_ps: int) -> None:
+        """What the bridge's UART has read of the board's TX line as known up to `until_ps` (`LineReader`: the line as
+        a whole, as the terminal decodes it); it looks again when the byte it is reading is over, if the board is
+        silent by then (else the board's next byte tells it)."""
+        for read_ps, received in self._reader.read(until_ps):
+            self._to_pc(received.data, read_ps)
+        wants = self._reader.wants_ps
+        if wants is not None and self._reading is None:
+            self._reading = self.sim.call_at(wants + 1, self._look_again)
+
+    def _look_again(self) -> None:
+        self._reading = None
+        usart = self.end.usart
+        if usart.sending_since() is None or not self.end.connected:
+            self._read(self.sim.now)
+        else:                                   # its end tells; unless aborted (TXEN cleared): look after it anyway
+            self._reading = self.sim.call_after(usart.frame_ps(), self._look_again)
+
+    def _to_pc(self, byte: int, time_ps: int) -> None:
         starts_line = self._between_lines(time_ps) and not (self._last == CR and byte == LF)
         self._line_bytes = 0 if starts_line else self._line_bytes + 1
         self._last, self._last_ps = byte, time_ps
@@ -142,18 +172,6 @@ class UsbCdc:
                 self._serving, self._draining = False, True
             self._skipping = why               # the rest of the line is lost too: a program gets whole lines only
         self._lose(why, time_ps)
-
-    def _as_read(self, byte: int) -> int | None:
-        """The byte as the bridge's UART (19200 baud) reads the board's frame at the USART's own baud rate, sampling
-        each bit in its middle (None: no start bit where it looked); a misread one is counted."""
-        usart = self.end.usart
-        sent_bit_ps, bit_ps = usart.bit_ps(), self.end.bit_ps()
-        if sent_bit_ps == bit_ps:
-            return byte
-        sampled = sample_frame(byte, sent_bit_ps, bit_ps, 8)
-        if sampled is None or sampled[0] != byte or not sampled[2]:
-            self.misread[round(usart.baud)] += 1
-        return None if sampled is None else sampled[0]
 
     def _lose(self, why: str, time_ps: int) -> None:
         if not self.why_lost[why]:
@@ -247,8 +265,9 @@ class UsbCdc:
             return
         self.closed = True
         self.end.listeners.remove(self._from_board)
-        if self._uart is not None:
-            self._uart.cancel()
+        for timer in (self._uart, self._reading):
+            if timer is not None:
+                timer.cancel()
         self._unsent = len(self._out)
         self._out.clear()
         self._port.close()

@@ -2,8 +2,9 @@
 core taking interrupts between two instructions.
 
 Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
-from the same place in the firmware, with nothing changed since) parks the firmware until a
-peripheral event changes something it reads: a busy-wait costs one loop turn per event, not per cycle.
+from the same place in the firmware, with nothing changed since, not even a delay of its own or a timer it reads)
+parks the firmware until a peripheral event changes something it reads: a busy-wait costs one loop turn per event,
+not per cycle.
 """
 from __future__ import annotations
 
@@ -104,7 +105,7 @@ class PIC18F8680(SFRNames):
         self.version = 0
         self._seen: dict[int, int] = {}                 # address -> `version` when the firmware last read it
         # What a polling loop reads again at `_polled_version`: values, (address, firmware location), and
-        # whether they tell all (no time-varying register, none whose read has a side effect).
+        # whether they tell all (no register whose read has a side effect).
         self._polled_version = -1
         self._polled: dict[int, int] = {}
         self._polled_sites: set[tuple[int, object]] = set()
@@ -170,13 +171,14 @@ class PIC18F8680(SFRNames):
 
     def _read_again(self, process: Process, address: int, site: object) -> None:
         """A register read again with nothing changed since: from the same place in the firmware, that
-        is a polling loop, parked until a change that it would see."""
+        is a polling loop, parked until a change that it would see. A loop that reads a register time changes (Timer1)
+        sees time pass by itself, as one that waits (`wait_cycles`): that read is a change, the loop never parks."""
+        if address in self.time_varying:
+            self.version += 1
+            return
         if self._polled_version != self.version:
             self._polled_version = self.version
             self._polled, self._polled_sites, self._polled_pure = {}, set(), True
-        if address in self.time_varying:
-            self._polled_pure = False       # the loop sees time pass: any change must wake it
-            return
         if address in self.read_side_effects:
             self._polled_pure = False
         site = (address, hash(firmware_location()) if site is None else site)
@@ -251,6 +253,14 @@ class PIC18F8680(SFRNames):
                 self._spend_interruptibly(process, cycles * self.tcy_ps)
             else:
                 process.spend(cycles * self.tcy_ps)
+
+    def wait_cycles(self, cycles: int) -> None:
+        """Time the firmware lets pass on purpose (C18's delays), spent as `spend_cycles`. A loop that waits so between
+        its reads sees time pass (its timeout comes), so a wait counts as a change: the reads after it are a new
+        look, never a polling loop's read again (`_read_again`), and the loop turns as it would on the chip."""
+        self.spend_cycles(cycles)
+        if self.process is not None and _getcurrent() is self.process:
+            self.version += 1
 
     # -------------------------------------------------------------- interrupts
     def _update_request(self) -> None:

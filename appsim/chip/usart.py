@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import bisect
 import functools
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -149,6 +149,7 @@ class USART:
         self._baud_rate_set()
         self._txreg: int | None = None          # a byte waiting in TXREG
         self._sending: Timer | None = None      # the TSR's byte, until its stop bit ends
+        self._sending_since = 0                 # and when its start bit began
         self._fifo: deque[Received] = deque()
         self._last_read = 0
         self._overrun = False
@@ -225,6 +226,10 @@ class USART:
         self._load_shift_register()
 
     # -------------------------------------------------------------- transmit
+    def sending_since(self) -> int | None:
+        """When the frame leaving the TX pin now began (None: none is, TRMT): the line is known up to then."""
+        return None if self._sending is None else self._sending_since
+
     def _fills_txreg(self) -> dict[int, int] | None:
         """What a write of TXREG changes, when the TSR is busy shifting a byte out: the byte only waits in TXREG, so
         PIR1.TXIF reads 0 and nothing else moves (PIC18F8680.quiet_writes). None when the TSR is empty: the byte
@@ -245,6 +250,7 @@ class USART:
         if self._txreg is None or self._sending is not None or not enabled:
             return
         byte, self._txreg = self._txreg, None
+        self._sending_since = self.mcu.sim.time()
         self._sending = self.mcu.sim.call_after(self.frame_ps(), lambda: self._sent(byte))
         self.mcu.changed()
 
@@ -289,19 +295,14 @@ Sent = tuple[int, int, int]
 """One 8N1 frame on a line: (start_ps, byte, bit_ps), the time its start bit begins, its byte, the sender's bit time."""
 
 
-def _line(frames: Sequence[Sent]) -> Callable[[int], int]:
-    """The level of a line carrying `frames` (in time order, none overlapping) at a time: high (1) when idle."""
-    starts = [start for start, _, _ in frames]
-
-    def level(t: int) -> int:
-        index = bisect.bisect_right(starts, t) - 1
-        if index < 0:
-            return 1
-        start, byte, bit_ps = frames[index]
-        bit = (t - start) // bit_ps
-        return 0 if bit == 0 else (byte >> (bit - 1)) & 1 if bit <= 8 else 1
-
-    return level
+def _level(frames: Sequence[Sent], t: int) -> int:
+    """The level of a line carrying `frames` (in time order, none overlapping) at `t`: high (1) when idle."""
+    index = bisect.bisect_right(frames, (t, 256, 0)) - 1
+    if index < 0:
+        return 1
+    start, byte, bit_ps = frames[index]
+    bit = (t - start) // bit_ps
+    return 0 if bit == 0 else (byte >> (bit - 1)) & 1 if bit <= 8 else 1
 
 
 def _read_frame(level: Callable[[int], int], start: int, bit_ps: int, data_bits: int) -> tuple[int, int, int] | None:
@@ -320,28 +321,82 @@ def sample_frame(byte: int, sent_bit_ps: int, bit_ps: int, data_bits: int) -> tu
     Returns (data bits as a number, the last data bit, the stop bit), or None if the start bit is not
     seen low at its middle. At matching rates this is (byte, bit 7, 1).
     """
-    return _read_frame(_line([(0, byte, sent_bit_ps)]), 0, bit_ps, data_bits)
+    return _read_frame(functools.partial(_level, [(0, byte, sent_bit_ps)]), 0, bit_ps, data_bits)
+
+
+class LineReader:
+    """A UART receiver at `baud` (8N1) reading a line as it is sent, as the PIC18F2550's reads the board's TX pin: from
+    each falling edge once it is ready, it samples the bits at their middles; a stop bit read low is a framing error
+    (the byte is kept, FERR set). At the sender's own rate that is every byte as sent; at another rate, garbage: a data
+    bit of one byte may be taken for the start bit of the next, and back-to-back bytes run into each other.
+
+    `send` gives it each frame the line carried, in time order; `read(until_ps)` what it has read of the line as known
+    up to `until_ps` (nothing more began before then), with when it read each byte (its stop bit's middle).
+    `wants_ps` is the time the line must be known past for the byte it is reading; `misread` counts the frames it did
+    not read as sent (from their start bit, the byte, a stop bit), by the sender's baud rate. Memory: the frames not
+    read yet, a few.
+    """
+
+    def __init__(self, baud: int = PC_BAUD):
+        self.bit_ps = round(PS_PER_SECOND / baud)
+        self.misread: Counter[int] = Counter()
+        self._frames: list[Sent] = []               # not read yet, in time order, none overlapping
+        self._edges: deque[tuple[int, int]] = deque()   # (time, frame) where the line may fall; frame -1: no start
+        self._ready = 0                             # the receiver looks for a start edge from then on
+        self._first = 0                             # the number of the first frame in `_frames`
+        self._level = functools.partial(_level, self._frames)
+
+    def send(self, frame: Sent) -> None:
+        start, _, step = frame
+        number = self._first + len(self._frames)
+        self._frames.append(frame)
+        self._edges.append((start, number))
+        self._edges.extend((start + n * step, -1) for n in range(1, 9))
+
+    @property
+    def wants_ps(self) -> int | None:
+        return self._edges[0][0] + self.bit_ps // 2 + 9 * self.bit_ps if self._edges else None
+
+    def read(self, until_ps: int) -> list[tuple[int, Received]]:
+        bit_ps, level, edges = self.bit_ps, self._level, self._edges
+        received = []
+        while edges:
+            edge, number = edges[0]
+            last = edge + bit_ps // 2 + 9 * bit_ps          # the stop bit's middle, its last sample
+            if edge >= self._ready and last >= until_ps:
+                break                                       # the line is not known that far yet
+            edges.popleft()
+            read = None
+            frame = _read_frame(level, edge, bit_ps, 8) if edge >= self._ready and level(edge - 1) > level(edge) \
+                else None                                   # a falling edge, and low at the start bit's middle
+            if frame is not None:
+                data, _, stop = frame
+                read = Received(data, False, not stop)
+                received.append((last, read))
+                self._ready = edge + bit_ps * 19 // 2       # the middle of the stop bit
+            if number >= 0:
+                _, byte, step = self._frames[number - self._first]
+                if read is None or read.data != byte or read.framing_error:
+                    self.misread[round(PS_PER_SECOND / step)] += 1
+        self._forget()
+        return received
+
+    def _forget(self) -> None:
+        """Drop the frames the line's levels no longer need: those over before the next edge to look at."""
+        frames = self._frames
+        before = self._edges[0][0] - 1 if self._edges else None
+        done = 0
+        while done < len(frames) and (before is None or frames[done][0] + 9 * frames[done][2] <= before):
+            done += 1
+        if done:
+            del frames[:done]
+            self._first += done
 
 
 def decode(frames: Iterable[Sent], baud: int = PC_BAUD) -> list[Received]:
-    """What a UART receiver at `baud` (8N1) reads from a line that carried `frames`, as the PIC18F2550's reads the
-    board's TX pin: from each falling edge it samples the bits at their middles; a stop bit read low is a framing
-    error (the byte is kept, FERR set). At the sender's own rate that is every byte as sent; at another rate, garbage.
-    """
-    sent = sorted(frames)
-    if not sent:
-        return []
-    bit_ps = round(PS_PER_SECOND / baud)
-    level = _line(sent)
-    edges = sorted({start + n * step for start, _, step in sent for n in range(9)})     # where the line may fall
-    received, ready = [], 0            # ready: the receiver looks for a start edge from then on
-    for edge in edges:
-        if edge < ready or level(edge - 1) == 0 or level(edge) == 1:
-            continue
-        frame = _read_frame(level, edge, bit_ps, 8)
-        if frame is None:
-            continue
-        data, last, stop = frame
-        received.append(Received(data, False, not stop))
-        ready = edge + bit_ps * 19 // 2                  # the middle of the stop bit
-    return received
+    """What a UART receiver at `baud` (8N1) reads from a line that carried `frames` (none overlapping), as the
+    PIC18F2550's reads the board's TX pin (`LineReader`, the whole line known)."""
+    reader = LineReader(baud)
+    for frame in sorted(frames):
+        reader.send(frame)
+    return [byte for _, byte in reader.read(1 << 62)]

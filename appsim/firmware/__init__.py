@@ -71,12 +71,12 @@ def _units(function: str, unit: int) -> int:
 
 def Delay1KTCYx(unit: int) -> None:
     """Wait 1,000 x `unit` instruction cycles, as C18's delays.h does (0.1 ms per unit at 40 MHz); 0 means 256."""
-    current_mcu().spend_cycles(CALL_CYCLES + 1_000 * _units("Delay1KTCYx", unit))
+    current_mcu().wait_cycles(CALL_CYCLES + 1_000 * _units("Delay1KTCYx", unit))
 
 
 def Delay10KTCYx(unit: int) -> None:
     """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz); 0 means 256."""
-    current_mcu().spend_cycles(CALL_CYCLES + 10_000 * _units("Delay10KTCYx", unit))
+    current_mcu().wait_cycles(CALL_CYCLES + 10_000 * _units("Delay10KTCYx", unit))
 
 
 SFR = _SFRs()

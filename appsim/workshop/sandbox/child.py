@@ -123,12 +123,22 @@ class RemoteMCU(SFRNames):
             self.flush()
 
     def spend_cycles(self, cycles: int) -> None:
+        self._spend(cycles, wire.SPEND, wire.SPEND_WAIT)
+
+    def wait_cycles(self, cycles: int) -> None:
+        """A delay (PIC18F8680.wait_cycles): spent, and a change for polling, here as on the board: every register
+        reads as not seen since, and the polling loop's sites start again (values the read-ahead foretold after a
+        write no longer hold: on the board the write would come after a change)."""
+        self._seen, self._sites_current, self._after = set(), False, {}
+        self._spend(cycles, wire.DELAY, wire.DELAY_WAIT)        # a wait's answer brings a read-ahead after it
+
+    def _spend(self, cycles: int, op: bytes, op_waits: bytes) -> None:
         if not isinstance(cycles, int) or cycles < 0:
             raise ValueError(f"instruction cycles are a whole number >= 0; got {cycles!r}")
         cycles = min(cycles, (1 << 64) - 1)
         if self._live and (self._ahead is None or cycles * self.tcy_ps > self._left_ps):
             self._ahead = None                  # the board may hand over, and vector, meanwhile
-            self._pending += wire.SPEND_ITEM.pack(wire.SPEND_WAIT, cycles)
+            self._pending += wire.SPEND_ITEM.pack(op_waits, cycles)
             self.flush()
             self._go_on()
             return
@@ -136,7 +146,7 @@ class RemoteMCU(SFRNames):
             self._left_ps -= cycles * self.tcy_ps
             if self._left_ps < 0:               # it reaches the next event: the board may change
                 self._ahead = None
-        self._pending += wire.SPEND_ITEM.pack(wire.SPEND, cycles)
+        self._pending += wire.SPEND_ITEM.pack(op, cycles)
         if len(self._pending) > wire.BATCH_BYTES:
             self.flush()
 

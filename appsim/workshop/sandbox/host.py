@@ -226,6 +226,8 @@ class SandboxedFirmware:
                         self._took_version = mcu.version
                     elif op is wire.SPEND or op is wire.SPEND_WAIT:
                         mcu.spend_cycles(first)
+                    elif op is wire.DELAY or op is wire.DELAY_WAIT:
+                        mcu.wait_cycles(first)
                     elif op is wire.IDLE:
                         mcu.wait_for_interrupt(codes.decode())
                     else:
@@ -280,10 +282,11 @@ class SandboxedFirmware:
         op, first = self._item
         mcu = current_mcu()
         assert isinstance(mcu, PIC18F8680)
-        cost = first * mcu.tcy_ps if op is wire.SPEND else mcu.access_ps
+        spends = op is wire.SPEND or op is wire.DELAY
+        cost = first * mcu.tcy_ps if spends else mcu.access_ps
         beyond = self._offered_end is None or self._item_from + cost > self._offered_end
         if ((op is wire.WRITE and (first == wire.INTCON or (self._child_live and self._took is None)))
-                or (op is wire.SERVED and beyond) or (op is wire.SPEND and self._child_live and beyond)):
+                or (op is wire.SERVED and beyond) or (spends and self._child_live and beyond)):
             return _protocol(ProtocolError("an access where the board may take an interrupt did not wait for its "
                                            "answer"))
         return Fault("grader", "the board took an interrupt during an access the firmware's process had been told it "

@@ -22,17 +22,19 @@ MAX_IDENTITY = 512
 
 # Child to grader. Alone: HELLO (booted, waiting for its firmware), LOADED + JSON identity, LOAD_FAILED + text,
 # RETURNED, RAISED + text, OUT_OF_MEMORY, EXITED. Or a BATCH of accesses: WRITE address:u16 value:u8, SPEND
-# cycles:u64 and SERVED address:u16 site:i64 value:u8 (a read the child answered from its read-ahead) items, ended by
+# cycles:u64, DELAY cycles:u64 (time the firmware lets pass on purpose: PIC18F8680.wait_cycles, a change for polling)
+# and SERVED address:u16 site:i64 value:u8 (a read the child answered from its read-ahead) items, ended by
 # at most one item that waits for its answer, READ address:u16 site:i64 or DISPLAY op:u8 (INITIAL; CURSOR line:i64
 # column:i64; TEXT length:u32 count:u16 codes:u8*count, the first `count` of the `length` codes written, count =
 # min(length, TEXT_SHOWN): the screen shows at most 21 of them, the rest only moves the cursor on); or, where the
-# board may take an interrupt (see Interrupts below), WRITE_WAIT address:u16 value:u8, SPEND_WAIT cycles:u64, IDLE
+# board may take an interrupt (see Interrupts below), WRITE_WAIT address:u16 value:u8, SPEND_WAIT or DELAY_WAIT
+# cycles:u64, IDLE
 # length:u16 loop:utf-8 (an empty waiting loop, by its line: PIC18F8680.wait_for_interrupt), or RETFIE vector:u8
 # (the routine the grader vectored to returns).
 HELLO, LOADED, LOAD_FAILED, RETURNED, RAISED, OUT_OF_MEMORY, EXITED, BATCH = (
     b"H", b"L", b"F", b"E", b"X", b"M", b"Q", b"B")
-WRITE, SPEND, SERVED, READ, DISPLAY = b"W", b"S", b"r", b"R", b"D"
-WRITE_WAIT, SPEND_WAIT, IDLE, RETFIE = b"w", b"s", b"I", b"T"
+WRITE, SPEND, DELAY, SERVED, READ, DISPLAY = b"W", b"S", b"Y", b"r", b"R", b"D"
+WRITE_WAIT, SPEND_WAIT, DELAY_WAIT, IDLE, RETFIE = b"w", b"s", b"y", b"I", b"T"
 INITIAL, CURSOR, TEXT = 0, 1, 2
 # Grader to child: SOURCE name-length:u16 name source; GO access_ps:u64 tcy_ps:u64; VALUE value:u8 and a read-ahead
 # (READ_AHEAD: budget_ps:u64 current:u8 entries:u16 sites:u16 writes:u8, then the entries' addresses (u16 each), their
@@ -148,13 +150,13 @@ class Channel:
 Access = tuple[bytes, int, int, int]     # (op, first, second, third argument), decoded
 # Decoded display items carry their operation in the op: INITIAL, CURSOR (line, column), TEXT (length; the codes apart).
 DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT = b"Di", b"Dc", b"Dt"
-WAITING = frozenset((READ, WRITE_WAIT, SPEND_WAIT, IDLE, DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT))
+WAITING = frozenset((READ, WRITE_WAIT, SPEND_WAIT, DELAY_WAIT, IDLE, DISPLAY_INITIAL, DISPLAY_CURSOR, DISPLAY_TEXT))
 
 
 def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
     """A BATCH message's items, and the bytes that come with the item that ends it (a display TEXT's codes, an IDLE's
-    loop). Only the last item may wait for an answer (READ, WRITE_WAIT, SPEND_WAIT, IDLE, a display item) or end a
-    routine (RETFIE). ProtocolError if anything is off."""
+    loop). Only the last item may wait for an answer (READ, WRITE_WAIT, SPEND_WAIT, DELAY_WAIT, IDLE, a display item)
+    or end a routine (RETFIE). ProtocolError if anything is off."""
     if len(message) == LONE_READ_SIZE and message.startswith(LONE_READ):
         _, address, site = READ_ITEM.unpack_from(message, 1)
         return [(READ, _address(address), site, 0)], b""
@@ -169,9 +171,9 @@ def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
                     raise ProtocolError("a write of INTCON that did not wait for its answer")
                 items.append((WRITE, _address(address), value, 0))
                 position += WRITE_ITEM.size
-            elif op == SPEND:
+            elif op == SPEND or op == DELAY:
                 _, cycles = SPEND_ITEM.unpack_from(message, position)
-                items.append((SPEND, cycles, 0, 0))
+                items.append((SPEND if op == SPEND else DELAY, cycles, 0, 0))
                 position += SPEND_ITEM.size
             elif op == SERVED:
                 _, address, site, value = SERVED_ITEM.unpack_from(message, position)
@@ -187,9 +189,9 @@ def decode_batch(message: bytes) -> tuple[list[Access], bytes]:
                 items.append((WRITE_WAIT, _address(address), value, 0))
                 position += WRITE_ITEM.size
                 break
-            elif op == SPEND_WAIT:
+            elif op == SPEND_WAIT or op == DELAY_WAIT:
                 _, cycles = SPEND_ITEM.unpack_from(message, position)
-                items.append((SPEND_WAIT, cycles, 0, 0))
+                items.append((SPEND_WAIT if op == SPEND_WAIT else DELAY_WAIT, cycles, 0, 0))
                 position += SPEND_ITEM.size
                 break
             elif op == RETFIE:
