@@ -63,6 +63,7 @@ class _Walled(pcpp.Preprocessor):
         self.own_defines: dict[str, tuple[str, int]] = {}
         self.touched = set(locked)      # the names the file's own #define and #undef (and -D) gave a meaning
         self.expanded = 0
+        self.written = 0                # characters of tokens given out (the preprocessed file's size, near enough)
         self.line_directive = "#line"
         self.rewrite_paths: list[tuple[str, str]] = []      # pcpp shortens paths under the working folder
         for name in ("__PCPP__", "__DATE__", "__TIME__"):
@@ -80,6 +81,23 @@ class _Walled(pcpp.Preprocessor):
         and every message name it so."""
         self.ignore = ignore or {}
         self.parser = self.parsegen(input, source, source)
+
+    def token(self) -> Any:
+        """As pcpp's (the next token not ignored), the file's size limited as its tokens go out: one call a token,
+        where a writer of its own would add another."""
+        parser, ignore = self.parser, self.ignore
+        try:
+            while True:
+                tok = next(parser)
+                if tok.type not in ignore:
+                    self.written += len(tok.value)
+                    if self.written > MAX_OUTPUT_CHARS:
+                        self.fail(0, f"the preprocessed file passed {MAX_OUTPUT_CHARS:,} characters: a firmware "
+                                     "file is a few thousand lines at most")
+                    return tok
+        except StopIteration:
+            self.parser = None
+            return None
 
     # -------------------------------------------------------------- pcpp's hooks
     def on_error(self, file: str, line: int, msg: str) -> None:
@@ -287,7 +305,7 @@ def preprocess(text: str, filename: str, locked: Mapping[str, int], deadline: fl
     walled = _Walled(filename, deadline, locked)
     walled.parse(text, filename)
     out = io.StringIO()
-    walled.write(_Limited(out, walled))
+    walled.write(out)
     expanded = {}
     for name in walled.own_defines:
         macro = walled.macros.get(name)
@@ -295,17 +313,3 @@ def preprocess(text: str, filename: str, locked: Mapping[str, int], deadline: fl
             tokens = walled.expand_macros(walled.tokenize(name))
             expanded[name] = "".join(t.value for t in tokens).strip()
     return Preprocessed(out.getvalue(), walled.included, walled.own_defines, expanded)
-
-
-class _Limited:
-    """The output, with its size limited."""
-
-    def __init__(self, out: io.StringIO, walled: _Walled):
-        self.out, self.walled, self.written = out, walled, 0
-
-    def write(self, text: str) -> None:
-        self.written += len(text)
-        if self.written > MAX_OUTPUT_CHARS:
-            self.walled.fail(0, f"the preprocessed file passed {MAX_OUTPUT_CHARS:,} characters: a firmware file "
-                                "is a few thousand lines at most")
-        self.out.write(text)
