@@ -147,12 +147,7 @@ class Translator:
                     continue
                 sub.lineno, sub.col_offset = line, column
                 sub.end_lineno, sub.end_col_offset = line, end
-            for name in sub._fields:    # its children (ast.iter_child_nodes, without the leaves: Load, Add ...)
-                value = getattr(sub, name, None)
-                if isinstance(value, list):
-                    stack.extend(item for item in value if isinstance(item, ast.AST) and not isinstance(item, _LEAVES))
-                elif isinstance(value, ast.AST) and not isinstance(value, _LEAVES):
-                    stack.append(value)
+            _push_children(sub, stack)
         return py
 
     def tick(self, node: Any) -> None:
@@ -613,8 +608,7 @@ class Translator:
         self.scopes.pop()
         self.tags.pop()
         self.function = None
-        assigned = sorted({n.id for s in body for n in ast.walk(s) if isinstance(n, ast.Name)
-                           and isinstance(n.ctx, ast.Store) and n.id in self.globals})
+        assigned = sorted(_stored_names(body) & self.globals)
         if assigned:
             body.insert(0, self.at(node, ast.Global(assigned)))
         if not body:
@@ -1322,7 +1316,7 @@ class Translator:
     def fit(self, e: E, t: Int) -> E:
         """Wrap `e`'s value into `t` (two's complement) unless its interval shows it fits."""
         if e.lo is not None and e.hi is not None and t.low <= e.lo and e.hi <= t.high:
-            return replace(e, t=t)
+            return E(e.py, t, e.lo, e.hi, e.const, e.literal, e.name)    # replace(e, t=t), without its cost
         mask = (1 << t.bits) - 1
         if t.signed:
             half = 1 << (t.bits - 1)
@@ -1870,6 +1864,42 @@ def _first_bit(sym: Sym) -> str:
 
 def _no_bit(bits: str, bit: str, fields: dict[str, tuple[int, int]]) -> str:
     return f"{bits} has no bit or field named {bit}; it has {', '.join(fields)}"
+
+
+def _stored_names(nodes: list[ast.stmt]) -> set[str]:
+    """The names the statements assign (ast.walk's Name nodes in a Store context, walked without its cost)."""
+    found = set()
+    stack: list[Any] = list(nodes)
+    while stack:
+        node = stack.pop()
+        if isinstance(node, ast.Name):
+            if isinstance(node.ctx, ast.Store):
+                found.add(node.id)
+        else:
+            _push_children(node, stack)
+    return found
+
+
+def _push_children(node: ast.AST, stack: list[Any]) -> None:
+    """Put the node's children on `stack` (ast.iter_child_nodes's, without the leaves: Load, Add ...), looking only
+    in the fields that may hold nodes."""
+    fields = _NODE_FIELDS.get(type(node))
+    if fields is None:
+        fields = _NODE_FIELDS[type(node)] = (() if isinstance(node, ast.Constant) else
+                                             tuple(f for f in node._fields if f not in _NEVER_NODES))
+    for name in fields:
+        value = getattr(node, name, None)
+        if isinstance(value, list):
+            stack += [item for item in value if isinstance(item, ast.AST) and not isinstance(item, _LEAVES)]
+        elif isinstance(value, ast.AST) and not isinstance(value, _LEAVES):
+            stack.append(value)
+
+
+# The fields of Python's AST (its ASDL) that hold an identifier, a number or a flag, never a node to walk into; and
+# the rest of each node type's fields, as they are met.
+_NEVER_NODES = frozenset({"id", "ctx", "op", "attr", "arg", "kind", "type_comment", "name", "module", "level",
+                          "is_async", "conversion", "simple"})
+_NODE_FIELDS: dict[type, tuple[str, ...]] = {}
 
 
 def _addressed(tree: Any) -> set[str]:

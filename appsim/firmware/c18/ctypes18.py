@@ -16,9 +16,13 @@ class CType:
     rom: bool = field(default=False, kw_only=True)
 
     def qualified(self, *, const: bool = False, volatile: bool = False, rom: bool = False) -> CType:
+        if (const <= self.const) and (volatile <= self.volatile) and (rom <= self.rom):
+            return self                 # nothing added (frozen: the same type; `replace` is slow, and this is hot)
         return replace(self, const=self.const or const, volatile=self.volatile or volatile, rom=self.rom or rom)
 
     def unqualified(self) -> CType:
+        if not (self.const or self.volatile or self.rom):
+            return self
         return replace(self, const=False, volatile=False, rom=False)
 
     @property

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import io
+import re
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -43,6 +44,8 @@ class _Header:
     macros: dict[str, Any]
     includes: tuple[str, ...]       # itself and the kit headers it includes
     text: str                       # its declarations, preprocessed (those of the headers it includes are theirs)
+    tested: frozenset[str] = frozenset()    # the names its own #if, #ifdef, #ifndef and #elif test
+    words: frozenset[str] = frozenset()     # the names its own declarations are written with
 
 
 _HEADERS: dict[tuple[str, bool], _Header] = {}
@@ -58,8 +61,10 @@ class _Walled(pcpp.Preprocessor):
         self.locked = dict(locked)
         self.included: list[str] = []
         self.own_defines: dict[str, tuple[str, int]] = {}
+        self.touched = set(locked)      # the names the file's own #define and #undef (and -D) gave a meaning
         self.expanded = 0
-        self.nesting, self.line = 0, 0                      # expand_macros calls within calls; the line expanded
+        self.nesting, self.line = 0, 0  # expand_macros calls within calls; the line expanded
+        self.written = 0                # characters of tokens given out (the preprocessed file's size, near enough)
         self.line_directive = "#line"
         self.rewrite_paths: list[tuple[str, str]] = []      # pcpp shortens paths under the working folder
         for name in ("__PCPP__", "__DATE__", "__TIME__"):
@@ -77,6 +82,23 @@ class _Walled(pcpp.Preprocessor):
         and every message name it so."""
         self.ignore = ignore or {}
         self.parser = self.parsegen(input, source, source)
+
+    def token(self) -> Any:
+        """As pcpp's (the next token not ignored), the file's size limited as its tokens go out: one call a token,
+        where a writer of its own would add another."""
+        parser, ignore = self.parser, self.ignore
+        try:
+            while True:
+                tok = next(parser)
+                if tok.type not in ignore:
+                    self.written += len(tok.value)
+                    if self.written > MAX_OUTPUT_CHARS:
+                        self.fail(0, f"the preprocessed file passed {MAX_OUTPUT_CHARS:,} characters: a firmware "
+                                     "file is a few thousand lines at most")
+                    return tok
+        except StopIteration:
+            self.parser = None
+            return None
 
     # -------------------------------------------------------------- pcpp's hooks
     def on_error(self, file: str, line: int, msg: str) -> None:
@@ -121,13 +143,36 @@ class _Walled(pcpp.Preprocessor):
         assert known is not None
         if len(self.included) >= MAX_INCLUDE_DEPTH * 4:
             self.fail(line, "too many #includes")
-        if known not in self.included:
-            header = kit_header(known, declarations=False)
-            for each in header.includes:
-                if each not in self.included:
-                    self.included.append(each)
-            self.macros.update((n, m) for n, m in header.macros.items() if n not in self.locked)
+        if known in self.included:
+            return iter(())
+        header = kit_header(known, declarations=False)
+        new = [kit_header(each, declarations=False) for each in header.includes if each not in self.included]
+        if self.touched:                # the file defined names before this #include: do they change the header?
+            names = [(each.includes[-1], sorted(self.touched & each.words)) for each in new]
+            for included, rewritten in names:
+                if rewritten:
+                    self.fail(line, f"{', '.join(rewritten)} is #defined before #include {included}, whose "
+                                    "declarations are written with it: C18 would read them with your macro in "
+                                    "them. Put the #define after the #includes, or give it a name of its own")
+            if any(self.touched & each.tested for each in new):
+                return self._in_context(known)
+        self.included += [each.includes[-1] for each in new]
+        self.macros.update((n, m) for n, m in header.macros.items() if n not in self.locked)
         return iter(())
+
+    def _in_context(self, name: str) -> Any:
+        """A kit header whose #if, #ifdef or #ifndef test a name the file defined before including it (its own NULL
+        before <stdio.h>): its directives read here, in the file's context, as C's preprocessor reads them (the macros
+        the kit made of the header alone would not hold); its declarations are the kit's, as always."""
+        for _ in self.parsegen(headers.header_text(name), name, name):
+            pass
+        self.included.append(name)
+        return iter(())
+
+    def undef(self, tokens: Any) -> None:
+        if not isinstance(tokens, str) and tokens and getattr(tokens[0], "source", None) == self.filename:
+            self.touched.add(tokens[0].value)
+        super().undef(tokens)
 
     # -------------------------------------------------------------- defines: -D wins; the file's own are kept
     def define(self, tokens: Any) -> None:
@@ -137,6 +182,8 @@ class _Walled(pcpp.Preprocessor):
         words = [t for t in tokens if t.type not in self.t_WS]
         name = words[0].value if words else ""
         source = getattr(words[0], "source", None) if words else None
+        if source == self.filename:
+            self.touched.add(name)
         if name in self.locked and source == self.filename:
             self.own_defines[name] = (_literal(self.locked[name]), words[0].lineno)
             return
@@ -216,31 +263,51 @@ def kit_header(name: str, declarations: bool = True) -> _Header:
         walled.parse(text, name)
         out = io.StringIO()
         walled.write(out)
-        found = _HEADERS[name, declarations] = _Header(dict(walled.macros), (*walled.included, name), out.getvalue())
+        tested, words = _names(headers.header_text(name))
+        found = _HEADERS[name, declarations] = _Header(dict(walled.macros), (*walled.included, name), out.getvalue(),
+                                                       tested, words)
     return found
 
 
-def header_macros() -> dict[tuple[str, bool], tuple[dict[str, dict[str, Any]], tuple[str, ...], str]]:
+_COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.DOTALL)
+_CONDITION = re.compile(r"\s*#\s*(?:if|ifdef|ifndef|elif)\b(.*)")
+_NAME = re.compile(r"[A-Za-z_]\w*")
+
+
+def _names(text: str) -> tuple[frozenset[str], frozenset[str]]:
+    """The names a header's conditional directives test, and the names its declarations are written with."""
+    tested: set[str] = set()
+    words: set[str] = set()
+    for line in _COMMENT.sub(" ", text).splitlines():
+        condition = _CONDITION.match(line)
+        if condition:
+            tested.update(_NAME.findall(condition.group(1)))
+        elif not line.lstrip().startswith("#"):
+            words.update(_NAME.findall(line))
+    return frozenset(tested - {"defined"}), frozenset(words)
+
+
+def header_macros() -> dict[tuple[str, bool], tuple[Any, ...]]:
     """The kit headers preprocessed so far, as plain data (a macro's attributes, its tokens as tuples): what
     `adopt_headers` takes in another process of this kit."""
     return {key: ({name: {**vars(macro), "value": [(t.type, t.value, t.lineno, t.lexpos, getattr(t, "source", ""))
                                                    for t in macro.value]}
-                   for name, macro in header.macros.items()}, header.includes, header.text)
+                   for name, macro in header.macros.items()}, header.includes, header.text, header.tested, header.words)
             for key, header in _HEADERS.items()}
 
 
-def adopt_headers(plain: Mapping[tuple[str, bool], tuple[dict[str, dict[str, Any]], tuple[str, ...], str]]) -> None:
+def adopt_headers(plain: Mapping[tuple[str, bool], tuple[Any, ...]]) -> None:
     """Take the kit headers preprocessed elsewhere (see `header_macros`), as if preprocessed here."""
     lexer = pcpp.Preprocessor().lexer
     lex_token = importlib.import_module(type(lexer).__module__).LexToken     # pcpp's own copy of PLY's
-    for key, (macros, includes, text) in plain.items():
+    for key, (macros, includes, text, tested, words) in plain.items():
         rebuilt = {}
         for name, attributes in macros.items():
             macro = pcpp.Macro.__new__(pcpp.Macro)
             macro.__dict__.update(attributes, value=[_token(lex_token, lexer, *token)
                                                            for token in attributes["value"]])
             rebuilt[name] = macro
-        _HEADERS.setdefault(key, _Header(rebuilt, tuple(includes), text))
+        _HEADERS.setdefault(key, _Header(rebuilt, tuple(includes), text, frozenset(tested), frozenset(words)))
 
 
 def _token(lex_token: type, lexer: Any, kind: str, value: str, lineno: int, lexpos: int, source: str) -> Any:
@@ -255,7 +322,7 @@ def preprocess(text: str, filename: str, locked: Mapping[str, int], deadline: fl
     walled = _Walled(filename, deadline, locked)
     walled.parse(text, filename)
     out = io.StringIO()
-    walled.write(_Limited(out, walled))
+    walled.write(out)
     expanded = {}
     for name in walled.own_defines:
         macro = walled.macros.get(name)
@@ -263,17 +330,3 @@ def preprocess(text: str, filename: str, locked: Mapping[str, int], deadline: fl
             tokens = walled.expand_macros(walled.tokenize(name))
             expanded[name] = "".join(t.value for t in tokens).strip()
     return Preprocessed(out.getvalue(), walled.included, walled.own_defines, expanded)
-
-
-class _Limited:
-    """The output, with its size limited."""
-
-    def __init__(self, out: io.StringIO, walled: _Walled):
-        self.out, self.walled, self.written = out, walled, 0
-
-    def write(self, text: str) -> None:
-        self.written += len(text)
-        if self.written > MAX_OUTPUT_CHARS:
-            self.walled.fail(0, f"the preprocessed file passed {MAX_OUTPUT_CHARS:,} characters: a firmware file "
-                                "is a few thousand lines at most")
-        self.out.write(text)
