@@ -18,7 +18,7 @@ def _teach_pycparser() -> None:
     """Make the parser take C18's qualifier tokens where C's take theirs. No other lexer emits these token types, so
     other users of pycparser in the process (cffi) see no change (from pycparser 3.12, each lexer has its own
     keywords)."""
-    if tuple(int(part) for part in pycparser.__version__.split(".")[:2]) < (3, 12):
+    if "_keyword_map" not in c_lexer.CLexer.__init__.__code__.co_names:     # a lexer's own keywords: pycparser 3.12
         raise RuntimeError(f"this pycparser ({pycparser.__version__}, {c_parser.__file__}) is older than 3.12, which "
                            "the kit's C translator needs: pip install --upgrade 'pycparser>=3.12,<4'")
     for table in ("_TYPE_QUALIFIER", "_DECL_START"):
