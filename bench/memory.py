@@ -58,7 +58,7 @@ HOGS: dict[str, tuple[str, str]] = {
                                       "while True:\n    deep(900)")),
     "endless call sites": ("demo1", _firmware(
         "import itertools\nfrom appsim.workshop.sandbox import child\ncounter = itertools.count()\n"
-        "child.firmware_location = lambda: next(counter)\nwhile True:\n    SFR.RXB0CON")),
+        "child.firmware_site = lambda: next(counter)\nwhile True:\n    SFR.RXB0CON")),
 }
 
 

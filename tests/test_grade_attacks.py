@@ -687,7 +687,7 @@ def _attack():
     import itertools
     from appsim.workshop.sandbox import child
     counter = itertools.count()
-    child.firmware_location = lambda: next(counter)
+    child.firmware_site = lambda: next(counter)
 ''')
 
 

@@ -9,7 +9,11 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+from conftest import World
+
 from appsim.board.app023 import APP023
+from appsim.chip.sfr import current_mcu
 from appsim.firmware import *
 from appsim.sim import PS_PER_SECOND
 
@@ -201,3 +205,66 @@ def test_seven_node_trace_is_identical_in_separate_processes_even_under_load():
     assert int(frames) >= 14
     assert loaded == quiet, "the trace changed when the machine was busy: simulated time leaked wall time"
     assert hashlib.sha256(b"").hexdigest() != digest
+
+
+TIMED_BLOCK = ("TMR1L", "RXB0CON", "COMSTAT", "RXB0CON", "RXB1CON", "PIR3")   # Timer1 first: never a polling loop
+POLLED_BLOCK = ("COMSTAT", "RXB0CON", "RXB0CON", "RXB1CON")                   # parks on its second turn
+LIT_BLOCK = ("LATJ", "COMSTAT", "PIR3", "RXB0CON", "RXB1CON", "TXB0CON", "RXB0CON", "RXB1CON")  # a LED lit each turn
+
+
+def _second_rxb0con(names: tuple[str, ...]) -> int:
+    return max(k for k, name in enumerate(names) if name == "RXB0CON")
+
+
+def block_reader(block: bool, names: tuple[str, ...], record: list):
+    """Firmware: a frame is coming; it reads a block of registers (RXB0CON twice) again and again, by `read_each` or
+    one read at a time, and records what it read and when, until the frame is in."""
+    def main():
+        mcu = current_mcu()
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_1 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)
+        block_of = [mcu.address_of(name) for name in names]
+        while len(record) < 10_000:
+            if names == LIT_BLOCK:
+                mcu.write(block_of[0], len(record) & 0xFF)     # a change: no read of the block is a read again
+            values = mcu.read_each(block_of) if block else [mcu.read(address) for address in block_of]
+            record.append((tuple(values), mcu.process.local_time))
+            if values[_second_rxb0con(names)] & 0x80:      # RXFUL
+                break
+    return main
+
+
+@pytest.mark.parametrize("names", [TIMED_BLOCK, POLLED_BLOCK, LIT_BLOCK])
+def test_a_block_of_reads_reads_what_and_when_the_reads_one_by_one_do(names):
+    """`read_each` is the libraries' shortcut for reads in a row: the same values at the same instants (a register read
+    twice is a read again, Timer1 ticks between reads, a polling loop parks at the same read, a frame that comes in
+    the middle of a block is seen by the reads after it), the same bus trace. The frame comes a cycle later each time,
+    so it meets every read of the block."""
+    mid_block = 0
+    for delay_cycles in range(5_000, 5_000 + (18 if names == LIT_BLOCK else 1)):
+        runs = {}
+        for block in (False, True):
+            record: list = []
+            world = World()
+            world.node("reader", block_reader(block, names, record))
+            world.node("sender", sender_after(delay_cycles))
+            world.run(0.01)
+            runs[block] = (record, repr(world.bus.trace))
+        (one_by_one, trace), (in_a_block, block_trace) = runs[False], runs[True]
+        assert in_a_block == one_by_one and block_trace == trace
+        assert in_a_block[-1][0][_second_rxb0con(names)] & 0x80, "the frame came in"
+        if names == POLLED_BLOCK:
+            assert len(in_a_block) == 2, "the loop parked on its second turn until the frame came"
+        else:
+            assert len(in_a_block) > 100, "the loop turned: Timer1's count or the LED kept it from parking"
+        mid_block += not in_a_block[-1][0][names.index("RXB0CON")] & 0x80   # its first RXB0CON had not seen it
+    if names == LIT_BLOCK:
+        assert mid_block, "the frame came in the middle of a block at least once"
+
+
+def sender_after(cycles: int):
+    def main():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        current_mcu().wait_cycles(cycles)
+        CANSendMessage(0x100, [1, 2, 3], 3, CAN_TX_STD_FRAME)
+    return main

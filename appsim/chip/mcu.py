@@ -9,7 +9,7 @@ not per cycle.
 from __future__ import annotations
 
 import contextvars
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, NamedTuple, Protocol
 
 import greenlet
@@ -31,7 +31,7 @@ from appsim.chip.sfr import (
     GLCDPort,
     SFRNames,
     firmware_entry,
-    firmware_location,
+    firmware_site,
     forget_firmware_code,
     missing_routine,
 )
@@ -101,6 +101,7 @@ class PIC18F8680(SFRNames):
         self.ecan = ECAN(name, fosc, changed=self.changed)
         self.sfr_addresses: dict[str, int] = {}
         self._devices: dict[int, Peripheral] = {}
+        self._readers: dict[int, Callable[[int], int]] = {}     # address -> its peripheral's read
         self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
         self.version = 0
         self._seen: dict[int, int] = {}                 # address -> `version` when the firmware last read it
@@ -141,6 +142,7 @@ class PIC18F8680(SFRNames):
         for name, address in registers:
             self.sfr_addresses[name] = address
             self._devices[address] = device
+            self._readers[address] = device.read
 
     # -------------------------------------------------------------- firmware access
     def read(self, address: int, site: object = None) -> int:
@@ -148,7 +150,6 @@ class PIC18F8680(SFRNames):
 
         An interrupt requested meanwhile (while the firmware handed over, or while its polling loop was parked) is
         taken after the read, before the firmware uses the value: between this instruction and the next."""
-        device = self._devices.get(address)
         process = self.process
         if process is not None and _getcurrent() is process:
             process.local_time += self.access_ps     # process.spend, its common case inline
@@ -161,13 +162,32 @@ class PIC18F8680(SFRNames):
             self._seen[address] = self.version
         else:
             late = again = False
-        value = device.read(address) if device is not None else 0
+        value = self._readers.get(address, _reads_zero)(address)
         if again:
             self._polled[address] = value       # what the polling loop saw, to tell a change it would see
         if (late or again) and self.interrupts.requested:
             assert process is not None          # `late or again`: the firmware's own read
             self._interrupt(process)
         return value
+
+    def read_each(self, addresses: Sequence[int]) -> list[int]:
+        """The registers read one after the other, each as `read` reads it; while that changes nothing (the reads fit
+        before the firmware's horizon, so nothing else runs meanwhile, and the register is not one read again since the
+        last change nor one time changes: no polling loop, no interrupt taken between them), without its call."""
+        process = self.process
+        if (process is None or _getcurrent() is not process
+                or process.local_time + len(addresses) * self.access_ps > process.horizon):
+            return [self.read(address) for address in addresses]
+        seen, version, access_ps = self._seen, self.version, self.access_ps
+        readers, time_varying = self._readers, self.time_varying
+        values: list[int] = []
+        for k, address in enumerate(addresses):
+            if seen.get(address) == version or address in time_varying:
+                return values + [self.read(address) for address in addresses[k:]]
+            process.local_time += access_ps
+            seen[address] = version
+            values.append(readers.get(address, _reads_zero)(address))
+        return values
 
     def _read_again(self, process: Process, address: int, site: object) -> None:
         """A register read again with nothing changed since: from the same place in the firmware, that
@@ -181,7 +201,7 @@ class PIC18F8680(SFRNames):
             self._polled, self._polled_sites, self._polled_pure = {}, set(), True
         if address in self.read_side_effects:
             self._polled_pure = False
-        site = (address, hash(firmware_location()) if site is None else site)
+        site = (address, firmware_site() if site is None else site)
         if site not in self._polled_sites:
             if len(self._polled_sites) < POLLING_SITES:
                 self._polled_sites.add(site)
@@ -207,9 +227,9 @@ class PIC18F8680(SFRNames):
         assert process is not None
         if addresses is not self._offered:
             self._offered = addresses
-            devices = self._devices
+            mapped = self._readers
             offered = [a for a in addresses if a not in self.time_varying and a not in self.read_side_effects]
-            self._offered_readers = [(a, devices[a].read if a in devices else _reads_zero) for a in offered]
+            self._offered_readers = [(a, mapped.get(a, _reads_zero)) for a in offered]
             self._offered_addresses = tuple(offered)
         budget = process.horizon - process.local_time
         seen, version = self._seen, self.version
@@ -363,12 +383,8 @@ class PIC18F8680(SFRNames):
         parked_on = self._parked_on
         if parked_on is None:
             return True
-        devices = self._devices
-        for address, value in parked_on.items():
-            device = devices.get(address)
-            if device is not None and device.read(address) != value:
-                return True
-        return False
+        readers = self._readers
+        return any(readers.get(address, _reads_zero)(address) != value for address, value in parked_on.items())
 
     def run(self, main: Callable[[], Any], routines: Mapping[int, Routine] | None = None) -> Process:
         """Start firmware `main` on this MCU (after a reset, as programming the chip would), with its interrupt

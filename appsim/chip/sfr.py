@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import abc
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextvars import ContextVar
 from types import CodeType, FrameType
 from typing import Any, Protocol
@@ -111,6 +111,10 @@ class SFRNames(abc.ABC):
     @abc.abstractmethod
     def write(self, address: int, value: int) -> None: ...
 
+    def read_each(self, addresses: Sequence[int]) -> list[int]:
+        """The registers read one after the other, as that many MOVF instructions would (a library's block of reads)."""
+        return [self.read(address) for address in addresses]
+
     def address_of(self, name: str) -> int:
         try:
             return self.sfr_addresses[name]
@@ -145,6 +149,7 @@ class FirmwareMCU(Protocol):
 
     def read(self, address: int, site: object = None) -> int: ...
     def write(self, address: int, value: int) -> None: ...
+    def read_each(self, addresses: Sequence[int]) -> list[int]: ...
     def spend_cycles(self, cycles: int) -> None: ...
     def wait_cycles(self, cycles: int) -> None: ...
     def address_of(self, name: str) -> int: ...
@@ -179,41 +184,43 @@ def current_mcu() -> FirmwareMCU:
     return mcu
 
 
-# id(code object) -> (that code object, kept alive so the id stays its own; FIRMWARE, KIT or ENTRY). Keyed by id: a
-# code object's own hash is recomputed from its whole content on every call.
+# id(code object) -> FIRMWARE, KIT or ENTRY, each code object kept alive in `_KEPT` so its id stays its own. Keyed by
+# id: a code object's own hash is recomputed from its whole content on every call.
 FIRMWARE, KIT, ENTRY = 0, 1, 2
-_KINDS: dict[int, tuple[CodeType, int]] = {}
+_KINDS: dict[int, int] = {}
+_KEPT: list[CodeType] = []
 _ENTRIES: set[CodeType] = set()
 
 
 def firmware_entry(function: Callable[..., object]) -> None:
-    """Mark `function` as what calls a firmware's main(): the walk of `firmware_location` stops there."""
+    """Mark `function` as what calls a firmware's main(): the walk of `firmware_site` stops there."""
     _ENTRIES.add(function.__code__)
-    _KINDS.clear()
+    forget_firmware_code()
 
 
-def firmware_location() -> tuple[tuple[int, int], ...]:
-    """Where in the firmware (outside this package) the current register access comes from: its call stack up to its
-    main(), as (id of the code object, instruction offset) of each firmware frame. A polling loop reads from one
-    place."""
+def firmware_site() -> int:
+    """Where in the firmware (outside this package) the current register access comes from, as a number: its call
+    stack up to its main(), each firmware frame's code object and instruction offset, hashed. A polling loop reads from
+    one place."""
     frame: FrameType | None = sys._getframe(2)
-    location = []
     kinds = _KINDS
+    site = 0
     while frame is not None:
         code = frame.f_code
-        known = kinds.get(id(code))
-        if known is None:
-            kind = (ENTRY if code in _ENTRIES else
-                    KIT if frame.f_globals.get("__name__", "").startswith("appsim.") else FIRMWARE)
-            known = kinds[id(code)] = (code, kind)
-        if known[1] == FIRMWARE:
-            location.append((id(code), frame.f_lasti))
-        elif known[1] == ENTRY:
+        kind = kinds.get(id(code))
+        if kind is None:
+            kind = kinds[id(code)] = (ENTRY if code in _ENTRIES else
+                                      KIT if frame.f_globals.get("__name__", "").startswith("appsim.") else FIRMWARE)
+            _KEPT.append(code)
+        if kind == FIRMWARE:
+            site = hash((site, id(code), frame.f_lasti))
+        elif kind == ENTRY:
             break
         frame = frame.f_back
-    return tuple(location)
+    return site
 
 
 def forget_firmware_code() -> None:
-    """Empty the cache behind `firmware_location` (new firmware brings new code objects)."""
+    """Empty the cache behind `firmware_site` (new firmware brings new code objects)."""
     _KINDS.clear()
+    _KEPT.clear()

@@ -121,6 +121,8 @@ _TX_WINDOWS = tuple(zip(_TXB_CON, (0b100, 0b011, 0b010), strict=True))          
 _RXM_SIDH = tuple(R.BY_NAME[f"RXM{n}SIDH"].address for n in range(2))
 _RXF_SIDH = tuple(R.BY_NAME[f"RXF{n}SIDH"].address for n in range(6))
 _WIN_RXB1 = 0b101
+_DLC_AND_ID = (_RXB0DLC, _RXB0SIDL, _RXB0SIDH, _RXB0EIDH, _RXB0EIDL)   # a received frame's, in the library's order
+_DATA = tuple(_RXB0D0 + i for i in range(8))
 _MODES = {m.value: m.name for m in CAN_OP_MODE if m is not CAN_OP_MODE.CAN_OP_MODE_BITS}
 
 
@@ -387,15 +389,14 @@ def CANReceiveMessage() -> CANMessage:
             flags |= CAN_RX_MSG_FLAGS.CAN_RX_DBL_BUFFERED
     else:
         return NO_MESSAGE
-    dlc_register = mcu.read(_RXB0DLC)
+    dlc_register, sidl, sidh, eidh, eidl = mcu.read_each(_DLC_AND_ID)
     length = dlc_register & 0x0F
     if dlc_register & R.RXRTR:
         flags |= CAN_RX_MSG_FLAGS.CAN_RX_RTR_FRAME
-    sidl = mcu.read(_RXB0SIDL)
     if sidl & R.EXIDE:
         flags |= CAN_RX_MSG_FLAGS.CAN_RX_XTD_FRAME
-    rx_id, _ = unpack_id(mcu.read(_RXB0SIDH), sidl, mcu.read(_RXB0EIDH), mcu.read(_RXB0EIDL))
-    data = bytes(mcu.read(_RXB0D0 + i) for i in range(min(length, 8)))
+    rx_id, _ = unpack_id(sidh, sidl, eidh, eidl)
+    data = bytes(mcu.read_each(_DATA[:min(length, 8)]))
     _window(mcu, 0b000)
     if mcu.read(_PIR3) & R.IRXIF:
         flags |= CAN_RX_MSG_FLAGS.CAN_RX_INVALID_MSG

@@ -22,7 +22,7 @@ from appsim.chip.sfr import (
     RUNNING_MCU,
     SFRNames,
     firmware_entry,
-    firmware_location,
+    firmware_site,
     missing_routine,
 )
 from appsim.errors import FirmwareError, NoInterruptRoutine
@@ -72,14 +72,14 @@ class RemoteMCU(SFRNames):
             if address not in self._seen:       # the first read since the change: where it comes from does not matter
                 self._seen.add(address)
                 return self._served(address, 0, ahead[address])
-            place = hash(firmware_location())
+            place = firmware_site()
             if not self._sites_current:         # PIC18F8680._read_again: the first read again since a change
                 self._sites, self._sites_current = set(), True
             if (address, place) not in self._sites:
                 self._sites.add((address, place))
                 return self._served(address, place, ahead[address])
         else:
-            place = hash(firmware_location())
+            place = firmware_site()
         self._ahead = None                      # a read that would park (or that the read-ahead does not cover)
         self._pending += wire.READ_ITEM.pack(wire.READ, _address(address), place)
         self.flush()
