@@ -69,6 +69,26 @@ def _units(function: str, unit: int) -> int:
     return unit or 256
 
 
+def Delay1TCY() -> None:
+    """One instruction cycle (C18's delays.h: a macro for Nop())."""
+    Nop()
+
+
+def Delay10TCYx(unit: int) -> None:
+    """Wait 10 x `unit` instruction cycles, as C18's delays.h does (1 us per unit at 40 MHz); 0 means 256."""
+    current_mcu().wait_cycles(CALL_CYCLES + 10 * _units("Delay10TCYx", unit))
+
+
+def Delay10TCY() -> None:
+    """Ten instruction cycles (C18's delays.h: a macro for Delay10TCYx(1))."""
+    Delay10TCYx(1)
+
+
+def Delay100TCYx(unit: int) -> None:
+    """Wait 100 x `unit` instruction cycles, as C18's delays.h does (10 us per unit at 40 MHz); 0 means 256."""
+    current_mcu().wait_cycles(CALL_CYCLES + 100 * _units("Delay100TCYx", unit))
+
+
 def Delay1KTCYx(unit: int) -> None:
     """Wait 1,000 x `unit` instruction cycles, as C18's delays.h does (0.1 ms per unit at 40 MHz); 0 means 256."""
     current_mcu().wait_cycles(CALL_CYCLES + 1_000 * _units("Delay1KTCYx", unit))
@@ -79,8 +99,11 @@ def Delay10KTCYx(unit: int) -> None:
     current_mcu().wait_cycles(CALL_CYCLES + 10_000 * _units("Delay10KTCYx", unit))
 
 
+DELAYS = (Delay1TCY, Delay10TCY, Delay10TCYx, Delay100TCYx, Delay1KTCYx, Delay10KTCYx)   # C18's delays.h, all of it
+
+
 SFR = _SFRs()
 globals().update({f"{register}bits": _Bits(register, fields) for register, fields in BITFIELDS.items()})
 
 __all__ = [*an738.__all__, *adc.__all__, *timers.__all__, *glcd.__all__, *usart.__all__, *interrupts.__all__,
-           "SFR", "Nop", "Delay1KTCYx", "Delay10KTCYx", *(f"{r}bits" for r in BITFIELDS)]
+           "SFR", "Nop", *(delay.__name__ for delay in DELAYS), *(f"{r}bits" for r in BITFIELDS)]

@@ -198,6 +198,7 @@ BINDINGS: dict[str, Callable[..., Any]] = {
     "WriteUSART": lambda data: usart.WriteUSART(data & 0xFF), "DataRdyUSART": _flag(usart.DataRdyUSART),
     "ReadUSART": usart.ReadUSART, "putsUSART": putsUSART, "putrsUSART": putrsUSART, "CloseUSART": usart.CloseUSART,
     # delays.h, p18f8680.h
+    "Delay10TCYx": firmware.Delay10TCYx, "Delay100TCYx": firmware.Delay100TCYx,
     "Delay1KTCYx": firmware.Delay1KTCYx, "Delay10KTCYx": firmware.Delay10KTCYx,
     "Nop": firmware.Nop, "ClrWdt": ClrWdt, "Reset": Reset,
     # APP023_GLCD.h
