@@ -1,6 +1,7 @@
 """Shared test harness: a simulated bus with boards, and firmware to run on them."""
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable
 
 import pytest
@@ -8,6 +9,12 @@ import pytest
 from appsim.bus.wire import Bus
 from appsim.chip.mcu import PIC18F8680
 from appsim.sim import Simulator
+
+# The tests press Ctrl-C on the kit's commands, as a user at a terminal does. A test run started in the background of a
+# script (`cmd &` without job control) inherits SIGINT ignored, and would hand it ignored to every command it starts:
+# they get it as a terminal gives it (an ignored signal is inherited across exec, a handler is not).
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 class World:
