@@ -6,6 +6,8 @@ It acts only through the chip's SFR bus: may import appsim.chip, appsim.can, app
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from appsim.chip.sfr import BITFIELDS, current_mcu
 from appsim.firmware import adc, an738, glcd, interrupts, timers, usart
 from appsim.firmware.adc import *
@@ -69,34 +71,30 @@ def _units(function: str, unit: int) -> int:
     return unit or 256
 
 
+def _counted_delay(name: str, cycles: int, per_unit: str) -> Callable[[int], None]:
+    """One of C18's counted delays: `cycles` x its unit count (an unsigned char, 0 means 256), after its call."""
+    def delay(unit: int) -> None:
+        current_mcu().wait_cycles(CALL_CYCLES + cycles * _units(name, unit))
+    delay.__name__ = delay.__qualname__ = name
+    delay.__doc__ = (f"Wait {cycles:,} x `unit` instruction cycles, as C18's delays.h does ({per_unit} per unit at "
+                     "40 MHz); 0 means 256.")
+    return delay
+
+
+Delay10TCYx = _counted_delay("Delay10TCYx", 10, "1 us")
+Delay100TCYx = _counted_delay("Delay100TCYx", 100, "10 us")
+Delay1KTCYx = _counted_delay("Delay1KTCYx", 1_000, "0.1 ms")
+Delay10KTCYx = _counted_delay("Delay10KTCYx", 10_000, "1 ms")
+
+
 def Delay1TCY() -> None:
     """One instruction cycle (C18's delays.h: a macro for Nop())."""
     Nop()
 
 
-def Delay10TCYx(unit: int) -> None:
-    """Wait 10 x `unit` instruction cycles, as C18's delays.h does (1 us per unit at 40 MHz); 0 means 256."""
-    current_mcu().wait_cycles(CALL_CYCLES + 10 * _units("Delay10TCYx", unit))
-
-
 def Delay10TCY() -> None:
     """Ten instruction cycles (C18's delays.h: a macro for Delay10TCYx(1))."""
     Delay10TCYx(1)
-
-
-def Delay100TCYx(unit: int) -> None:
-    """Wait 100 x `unit` instruction cycles, as C18's delays.h does (10 us per unit at 40 MHz); 0 means 256."""
-    current_mcu().wait_cycles(CALL_CYCLES + 100 * _units("Delay100TCYx", unit))
-
-
-def Delay1KTCYx(unit: int) -> None:
-    """Wait 1,000 x `unit` instruction cycles, as C18's delays.h does (0.1 ms per unit at 40 MHz); 0 means 256."""
-    current_mcu().wait_cycles(CALL_CYCLES + 1_000 * _units("Delay1KTCYx", unit))
-
-
-def Delay10KTCYx(unit: int) -> None:
-    """Wait 10,000 x `unit` instruction cycles, as C18's delays.h does (1 ms per unit at 40 MHz); 0 means 256."""
-    current_mcu().wait_cycles(CALL_CYCLES + 10_000 * _units("Delay10KTCYx", unit))
 
 
 DELAYS = (Delay1TCY, Delay10TCY, Delay10TCYx, Delay100TCYx, Delay1KTCYx, Delay10KTCYx)   # C18's delays.h, all of it
