@@ -175,11 +175,11 @@ def test_the_lower_identifier_wins_arbitration_and_the_loser_sees_it(env, monkey
     the 0x300 node is told it lost arbitration (CAN_ERR_LOSTARB), and its frames go through after."""
     from appsim.bus import serve
 
-    queued: dict[str, int] = {}                     # when (simulated ps) each node's first frame reached its queue
+    queued: dict[str, list[int]] = {"high": [], "low": []}   # when (simulated ps) each frame reached its node's queue
     transmit = serve.ClientNode.transmit
 
     def noting_when(node: serve.ClientNode, frame: Any) -> None:
-        queued.setdefault(node.name, node.wire.sim.time())
+        queued[node.name].append(node.wire.sim.time())
         transmit(node, frame)
 
     monkeypatch.setattr(serve.ClientNode, "transmit", noting_when)
@@ -204,12 +204,15 @@ def test_the_lower_identifier_wins_arbitration_and_the_loser_sees_it(env, monkey
         """, env)
         assert result.returncode == 0, result.stderr
         lost, *order = result.stdout.split()
-        first_low = order.index("0x100")
-        started_alone = sum(e.start_ps < queued["low"] for e in served.bus.trace if e.ok and e.sender == "high")
-        assert first_low == started_alone < 40, "the 0x300 frames queued first go through only until 0x100 contends"
-        assert order[first_low:first_low + 10] == ["0x100"] * 10 and order.count("0x300") == 40
-        assert int(lost) >= 1
-        assert [e.sender for e in served.bus.trace if e.ok].count("low") == 10
+        frames = [e for e in served.bus.trace if e.ok]
+        assert [hex(e.frame.can_id) for e in frames] == order, "the loser's order is the bus's order"
+        assert order.count("0x300") == 40 and order.count("0x100") == 10
+        bit_ps = 8_000_000                                      # 125 kbit/s
+        for event in (e for e in frames if e.sender == "high"):
+            waiting = sum(t < event.start_ps - bit_ps for t in queued["low"]) \
+                - sum(e.sender == "low" and e.start_ps < event.start_ps for e in frames)
+            assert waiting == 0, f"a 0x300 frame started at {event.start_ps} ps while {waiting} 0x100 frames waited"
+        assert order.index("0x100") < 40 and int(lost) >= 1, "0x100 came while 0x300 frames waited, and won"
 
 
 def test_a_listen_only_program_never_acks_and_sees_the_error_frames_of_a_lone_board(env, tmp_path):
