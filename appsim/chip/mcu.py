@@ -151,22 +151,23 @@ class PIC18F8680(SFRNames):
         An interrupt requested meanwhile (while the firmware handed over, or while its polling loop was parked) is
         taken after the read, before the firmware uses the value: between this instruction and the next."""
         process = self.process
-        if process is not None and _getcurrent() is process:
-            process.local_time += self.access_ps     # process.spend, its common case inline
-            late = process.local_time > process.horizon
-            if late:
-                process.spend(0)
-            again = self._seen.get(address) == self.version    # after spend: other firmware and events may have run
-            if again:
-                self._read_again(process, address, site)
-            self._seen[address] = self.version
-        else:
-            late = again = False
+        if process is None or _getcurrent() is not process:
+            return self._readers.get(address, _reads_zero)(address)
+        local_time = process.local_time = process.local_time + self.access_ps   # process.spend, its common case
+        late = local_time > process.horizon
+        if late:
+            process.spend(0)
+        seen, version = self._seen, self.version    # after spend: other firmware and events may have run
+        if seen.get(address) == version:
+            self._read_again(process, address, site)
+            seen[address] = self.version
+            value = self._polled[address] = self._readers.get(address, _reads_zero)(address)  # what the loop saw
+            if self.interrupts.requested:
+                self._interrupt(process)
+            return value
+        seen[address] = version
         value = self._readers.get(address, _reads_zero)(address)
-        if again:
-            self._polled[address] = value       # what the polling loop saw, to tell a change it would see
-        if (late or again) and self.interrupts.requested:
-            assert process is not None          # `late or again`: the firmware's own read
+        if late and self.interrupts.requested:
             self._interrupt(process)
         return value
 
@@ -201,7 +202,7 @@ class PIC18F8680(SFRNames):
             self._polled, self._polled_sites, self._polled_pure = {}, set(), True
         if address in self.read_side_effects:
             self._polled_pure = False
-        site = (address, firmware_site() if site is None else site)
+        site = (address, firmware_site(3) if site is None else site)        # from read's caller
         if site not in self._polled_sites:
             if len(self._polled_sites) < POLLING_SITES:
                 self._polled_sites.add(site)

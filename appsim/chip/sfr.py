@@ -198,11 +198,12 @@ def firmware_entry(function: Callable[..., object]) -> None:
     forget_firmware_code()
 
 
-def firmware_site() -> int:
+def firmware_site(depth: int = 2) -> int:
     """Where in the firmware (outside this package) the current register access comes from, as a number: its call
     stack up to its main(), each firmware frame's code object and instruction offset, hashed. A polling loop reads from
-    one place."""
-    frame: FrameType | None = sys._getframe(2)
+    one place. The walk starts `depth` frames up (2: the caller of the function that calls this, the register read
+    itself): each frame it looks at that had no frame object is given one, which costs more than the rest of it."""
+    frame: FrameType | None = sys._getframe(depth)
     kinds = _KINDS
     site = 0
     while frame is not None:

@@ -65,6 +65,20 @@ _READ_KIND_AT = tuple(_read_kind(0xF00 + index) for index in range(0x100))     #
 _WINDOW_FIRST, _WINDOW_LAST = R.WINDOW_FIRST - 0xF00, R.WINDOW_LAST - 0xF00    # as indexes
 _WINDOW_SHIFT_BY_CANCON = tuple(R.BUFFER_BASE[R.WINDOW[(cancon & R.WIN_MASK) >> 1]] - R.WINDOW_FIRST
                                 for cancon in range(0x100))
+
+
+def _plain_indexes(shift: int) -> tuple[int, ...]:
+    """By address - F00h, through the window shifted by `shift`: the index of the register a read returns as it is
+    stored, -1 where a read does more (protected, computed or unmapped)."""
+    indexes = []
+    for index in range(0x100):
+        seen = index + shift if _WINDOW_FIRST <= index <= _WINDOW_LAST else index
+        indexes.append(seen if _READ_KIND_AT[seen] == _PLAIN else -1)
+    return tuple(indexes)
+
+
+_PLAIN_BY_SHIFT = {shift: _plain_indexes(shift) for shift in set(_WINDOW_SHIFT_BY_CANCON)}
+_PLAIN_INDEX_BY_CANCON = tuple(_PLAIN_BY_SHIFT[shift] for shift in _WINDOW_SHIFT_BY_CANCON)
 _TXREQ_LOCK = {r.address: R.BUFFER_BASE[r.name[:4]] - 0xF00 for r in R.REGISTERS   # TXBn data: CON index
                if r.name[:3] == "TXB" and r.name[4:] != "CON"}
 _RESETS_ACCEPTANCE = frozenset(r.address for r in R.REGISTERS if r.protected)   # filters and masks among them
@@ -138,6 +152,11 @@ class ECAN(ErrorCounters):
     def read(self, address: int) -> int:
         """What the CPU reads at an SFR address (after the CANCON.WIN window)."""
         index = address - 0xF00
+        if 0 <= index <= 0xFF:
+            sfr = self._sfr
+            plain = _PLAIN_INDEX_BY_CANCON[sfr[0x6F]][index]
+            if plain >= 0:
+                return sfr[plain]
         if _WINDOW_FIRST <= index <= _WINDOW_LAST:
             index += _WINDOW_SHIFT_BY_CANCON[self._sfr[0x6F]]
         elif not 0 <= index <= 0xFF:
