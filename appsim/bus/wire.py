@@ -436,7 +436,7 @@ class Bus:
         senders = {id(sender)} | {id(e[1]) for e in same_id}
         listeners = [p for p in self.ports if id(p) not in senders and self._on_bus(p, Mode.NORMAL, Mode.LISTEN_ONLY)]
         ackers = tuple(p.name for p in listeners if p.mode == Mode.NORMAL)
-        if isinstance(sender, _LinkPort):
+        if type(sender) is _LinkPort:   # isinstance is slow for a Protocol's subclass, at every frame
             ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
         plain = (bool(ackers) and not self._drifting and all(e[3] == frame for e in same_id)
                  and all(p.rate_ok for p in listeners) and all(e[1].rate_ok for e in entries))
@@ -530,7 +530,7 @@ class Bus:
                 received.append((port.name, self._deliver(port, outcome)))
             acked = () if error else tuple(p.name for p in ports if p is not sender and p.mode == Mode.NORMAL
                                            and run.outcomes[p.name].received is not None)
-            if isinstance(sender, _LinkPort) and not error:
+            if type(sender) is _LinkPort and not error:
                 acked += (sender.name,)
             self.trace.append(BusEvent(start, end, sender.name, self._once(frame), self._once(acked),
                                        self._once(error), self._once(tuple(received)), flag_at_bit,
@@ -576,7 +576,8 @@ class Bus:
         wrong = [p.name for p in ports if not p.rate_ok]
         if wrong:
             why += f"; bit timing does not match the bus: {', '.join(wrong)}"
-        drifting = [f"{p.name} {p.ppm:+,g} ppm" for p in ports if isinstance(p, _NodePort) and p.ppm]
+        drifting = ([f"{p.name} {p.ppm:+,g} ppm" for p in ports if type(p) is _NodePort and p.ppm]
+                    if self._drifting else [])
         if drifting:
             why += f"; oscillators off: {', '.join(drifting)}"
         return why
