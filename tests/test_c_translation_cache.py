@@ -21,7 +21,7 @@ SOLUTIONS, STARTERS = KIT / "solutions", KIT / "exercises"
 # code, compared field by field (bytecode, constants, names, line table), its #define constants and defines. `cold`:
 # nothing known ahead; `zygote`: as a grading sandbox, the grader's headers' state adopted and warmed, the files in
 # reverse order, then all again (each from the cache, the very same translation); `pycparser`: cold, with pycparser's
-# own lexer and look-ahead instead of the kit's quicker ones.
+# own lexer and look-ahead and pcpp's own lexer instead of the kit's quicker ones.
 _FINGERPRINTS = """
 import gc, hashlib, json, sys
 from pathlib import Path
@@ -45,6 +45,9 @@ elif mode == "pycparser":
     parser.C18Lexer.token = c_lexer.CLexer.token
     parser.C18Parser._peek = c_parser.CParser._peek
     parser.C18Parser._peek_type = c_parser.CParser._peek_type
+    from pcpp.parser import lex
+    from appsim.firmware.c18 import preprocess
+    preprocess._QuickLexer.token = lex.Lexer.token
 files = sorted(p for folder in folders for p in Path(folder).rglob("*.c"))
 jobs = [(p, options) for options in ((), ("-Oi",), ("-k",)) for p in files]
 if mode == "zygote":
@@ -70,7 +73,37 @@ def test_every_kit_c_file_translates_the_same_cold_from_the_graders_headers_stat
     cold = _fingerprints("cold")
     assert len(cold) == 3 * 17, "solutions, interrupts, starters; three option sets each"
     assert _fingerprints("zygote", c18.header_state()) == cold, "a sandbox's translations are cold ones"
-    assert _fingerprints("pycparser") == cold, "the kit's quicker lexer and look-ahead change nothing"
+    assert _fingerprints("pycparser") == cold, "the kit's quicker lexers and look-ahead change nothing"
+
+
+def _pcpp_tokens(lexer: object, text: str) -> list[tuple[object, ...]]:
+    lexer.input(text)                                                   # type: ignore[attr-defined]
+    tokens = []
+    while (token := lexer.token()) is not None:                         # type: ignore[attr-defined]
+        tokens.append((token.type, token.value, token.lineno, token.lexpos, hasattr(token, "lexer"),
+                       lexer.lineno, lexer.lexpos))                     # type: ignore[attr-defined]
+    return tokens
+
+
+def test_the_preprocessors_quicker_lexer_gives_pcpps_own_tokens_on_every_kit_file_and_on_random_text():
+    """Token for token (type, text, line, position, and the lexer's own line and position after it): the kit's C
+    files, its headers, and 20,000 random strings of what C is written with, with the rules' traps (L'x' is a
+    character, not a word; ^= is two tokens to pcpp; a line continuation; a comment)."""
+    import random
+
+    from pcpp.parser import default_lexer
+
+    from appsim.firmware.c18 import headers, preprocess
+
+    texts = [p.read_text(errors="replace") for folder in (SOLUTIONS, STARTERS) for p in folder.rglob("*.c")]
+    texts += [headers.header_text(name) for name in headers.HEADERS]
+    draw = random.Random(1)
+    alphabet = [*"  \t\n\nabcLxyz_019'\"/*\\#.^=<>-+|&!(){}[];,:?~%é", "L'a'", "/*", "*/", "//", "\\\n", "0x1F"]
+    texts += ["".join(draw.choice(alphabet) for _ in range(draw.randrange(1, 60))) for _ in range(20_000)]
+    texts += ["=", "^=", "L'", "L'x", "_L'x'", ""]
+    assert len(texts) > 20_000 + 14 + len(headers.HEADERS)
+    for text in texts:
+        assert _pcpp_tokens(preprocess._quick_lexer(), text) == _pcpp_tokens(default_lexer(), text), repr(text)
 
 
 _TRICKY = r"""

@@ -6,7 +6,6 @@ translator knows its declarations already). `-D` names replace the file's own #d
 """
 from __future__ import annotations
 
-import importlib
 import io
 import re
 import time
@@ -15,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pcpp import preprocessor as pcpp
+from pcpp.parser import LexToken, default_lexer, lex
 
 from appsim.errors import CCompileError
 from appsim.firmware.c18 import headers
@@ -26,6 +26,65 @@ MAX_INCLUDE_DEPTH = 8
 # C18's predefined macros (its User's Guide, 2.10), and fixed __DATE__/__TIME__: the kit is deterministic.
 PREDEFINED = {"__18CXX": "1", "__18F8680": "1", "__SMALL__": "1", "__TRADITIONAL18__": "1",
               "__DATE__": '"Jan  1 2026"', "__TIME__": '"00:00:00"'}
+
+
+_BLANKS = re.compile(r"[ \t]+")
+_WORD = re.compile(r"[A-Za-z_][\w_]*")           # pcpp's t_CPP_ID
+_WORD_START = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_")
+# Punctuation that is a token by itself in pcpp's rules (no longer token starts with it).
+_SINGLE = {"(": "CPP_LPAREN", ")": "CPP_RPAREN", ",": "CPP_COMMA", ";": "CPP_SEMICOLON", "{": "CPP_LCURLY",
+           "}": "CPP_RCURLY", "[": "CPP_LBRACKET", "]": "CPP_RBRACKET", "~": "CPP_TILDE", "?": "CPP_QUESTION",
+           ":": "CPP_COLON"}
+
+
+class _QuickLexer(lex.Lexer):
+    """pcpp's lexer (ply's, with pcpp's rules), quicker at what a firmware is mostly made of (blanks, newlines, words,
+    brackets and separators): each gives the very token ply's rules give (tests/test_c_translation_cache.py compares
+    their tokens on every C file of the kit and on random text), the rest is ply's."""
+
+    lexdata: str                        # ply's Lexer's, set in its input()
+    lexpos: int
+    lexlen: int
+    lineno: int
+
+    def token(self) -> Any:
+        data, pos = self.lexdata, self.lexpos
+        if pos >= self.lexlen:
+            return super().token()
+        c = data[pos]
+        tok = LexToken()
+        tok.lineno, tok.lexpos = self.lineno, pos
+        if c == " " or c == "\t":
+            match = _BLANKS.match(data, pos)
+            tok.type, tok.value, tok.lexer = "CPP_WS", match.group(), self     # type: ignore[union-attr]
+            self.lexmatch, self.lexpos = match, match.end()                    # type: ignore[union-attr]
+        elif c == "\n":
+            tok.type, tok.value, tok.lexer = "CPP_WS", c, self
+            self.lexpos, self.lineno = pos + 1, self.lineno + 1
+        elif c in _WORD_START and not (c == "L" and data.startswith("'", pos + 1)):     # L'x' is a character
+            value = tok.value = _WORD.match(data, pos).group()                 # type: ignore[union-attr]
+            tok.type, self.lexpos = "CPP_ID", pos + len(value)
+        elif c in _SINGLE:
+            tok.type, tok.value, self.lexpos = _SINGLE[c], c, pos + 1
+        else:
+            return super().token()
+        return tok
+
+
+def _quick_lexer() -> _QuickLexer:
+    """pcpp's own lexer as a `_QuickLexer`, made once (ply builds it from pcpp's rules), a copy for each use."""
+    global _LEXER
+    if _LEXER is None:
+        made = default_lexer()
+        if made.lexignore or len(made.lexstatere) != 1:
+            raise RuntimeError(f"this pcpp's lexer ({pcpp.__file__}) ignores characters or has states, which the "
+                               "kit's quicker lexer does not know: install pcpp 1.30")
+        made.__class__ = _QuickLexer
+        _LEXER = made
+    return _LEXER.clone()
+
+
+_LEXER: _QuickLexer | None = None
 
 
 @dataclass
@@ -55,7 +114,7 @@ class _Walled(pcpp.Preprocessor):
     """pcpp with its includes, errors and growth under the kit's control."""
 
     def __init__(self, filename: str, deadline: float, locked: Mapping[str, int] = {}):
-        super().__init__()
+        super().__init__(lexer=_quick_lexer())
         self.filename = filename
         self.deadline = deadline
         self.locked = dict(locked)
@@ -298,20 +357,19 @@ def header_macros() -> dict[tuple[str, bool], tuple[Any, ...]]:
 
 def adopt_headers(plain: Mapping[tuple[str, bool], tuple[Any, ...]]) -> None:
     """Take the kit headers preprocessed elsewhere (see `header_macros`), as if preprocessed here."""
-    lexer = pcpp.Preprocessor().lexer
-    lex_token = importlib.import_module(type(lexer).__module__).LexToken     # pcpp's own copy of PLY's
+    lexer = _quick_lexer()
     for key, (macros, includes, text, tested, words) in plain.items():
         rebuilt = {}
         for name, attributes in macros.items():
             macro = pcpp.Macro.__new__(pcpp.Macro)
-            macro.__dict__.update(attributes, value=[_token(lex_token, lexer, *token)
+            macro.__dict__.update(attributes, value=[_token(lexer, *token)
                                                            for token in attributes["value"]])
             rebuilt[name] = macro
         _HEADERS.setdefault(key, _Header(rebuilt, tuple(includes), text, frozenset(tested), frozenset(words)))
 
 
-def _token(lex_token: type, lexer: Any, kind: str, value: str, lineno: int, lexpos: int, source: str) -> Any:
-    token = lex_token()
+def _token(lexer: Any, kind: str, value: str, lineno: int, lexpos: int, source: str) -> Any:
+    token = LexToken()                  # pcpp's own copy of PLY's
     token.type, token.value, token.lineno, token.lexpos, token.source, token.lexer = (kind, value, lineno, lexpos,
                                                                                       source, lexer)
     return token
