@@ -188,6 +188,11 @@ def _c_firmware(config: Config) -> list[Figure]:
                    repeat(config.runs, cfirmware.first_load_ms), note="python -c: import the translator, ex6.c")
     each = Figure("C: translate and load one more solution file (headers known)", "wall ms",
                   repeat(config.runs, cfirmware.next_load_ms), note="ex1.c .. ex6.c, demo1_monitor.c: the mean")
+    fresh = [cfirmware.fresh_child_ms() for _ in range(max(config.runs, 1))]
+    in_child = Figure("C: ex3.c translated in a child forked from a zygote, first / again in that child", "ratio",
+                      tuple(first / again for first, again in fresh), lower_is_better=True,
+                      note="CPU ms, first " + ", ".join(f"{first:.0f}" for first, _ in fresh) + "; again "
+                           + ", ".join(f"{again:.0f}" for _, again in fresh) + ": each exercise's child pays the first")
     cached = Figure("C: load a file translated before (cached by content, defines, options)", "wall ms",
                     repeat(config.runs, cfirmware.cached_load_ms), note="a fresh module: globals of its own")
     size = config.class_size
@@ -198,7 +203,7 @@ def _c_firmware(config: Config) -> list[Figure]:
     room = Figure(f"appsim grade: a class of {size} in C / the same class in Python, --jobs 2", "ratio",
                   tuple(graded), target=1.2, lower_is_better=True,
                   note="full submissions (Ex1..Ex6, Demo1), sandboxed, the whole command")
-    return [run, first, each, cached, room]
+    return [run, first, each, in_child, cached, room]
 
 
 def _linked(config: Config) -> list[Figure]:

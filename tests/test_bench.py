@@ -31,6 +31,7 @@ ROWS = (
     "classroom at Ex6, the stations interrupt-driven (solutions/interrupts/)",
     "interrupts' cost in the Ex6 classroom (interrupt-driven / polling)",
     "appsim grade of Ex1, Ex3, Ex6, sandboxed: interrupt-driven / polling",
+    "C: ex3.c translated in a child forked from a zygote, first / again in that child",
     "linked: Ex2 frame spacing at a python-can peer",
     "linked: RTR round trip peer -> master -> peer",
     "notebook knob turn, as before: the classroom rerun from zero, LCD drawn by matplotlib",
