@@ -12,6 +12,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 from textwrap import dedent
 from typing import Any
@@ -213,6 +214,86 @@ def test_the_lower_identifier_wins_arbitration_and_the_loser_sees_it(env, monkey
                 - sum(e.sender == "low" and e.start_ps < event.start_ps for e in frames)
             assert waiting == 0, f"a 0x300 frame started at {event.start_ps} ps while {waiting} 0x100 frames waited"
         assert order.index("0x100") < 40 and int(lost) >= 1, "0x100 came while 0x300 frames waited, and won"
+
+
+def test_its_own_frames_come_back_where_the_bus_carried_them_however_long_the_slice(env, monkeypatch):
+    """receive_own_messages: a program's frame comes back (SENT) in the bus's order among the others' frames, also when
+    several frames went by between two polls (a busy machine runs long slices). The server is polled by hand here, so
+    the slices are known: 30 ms of the bus, six frames, in one."""
+    from appsim.bus.serve import ClassroomServer
+    from appsim.bus.wire import Bus
+    from appsim.sim import Simulator
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", env["XDG_RUNTIME_DIR"])
+    bus = Bus(Simulator(), 125_000)
+
+    def poll_for(ms: float) -> None:
+        server.poll()
+        bus.sim.run_for(ms / 1000)
+        server.poll()
+
+    def send(sock: socket.socket, can_id: int, count: int) -> None:
+        sock.sendall(P.TO_CLASSROOM.pack(P.SEND, 0, can_id, 1, bytes(8)) * count)
+        time.sleep(0.05)                    # on its way through the loopback before the next poll
+        poll_for(0.1)                       # a frame of theirs takes 0.4 ms: the first has started, not ended
+
+    with ClassroomServer(bus, "test") as server:
+        high, low = raw_client(env), raw_client(env)
+        for _ in range(20):
+            time.sleep(0.01)
+            poll_for(1)
+        assert answer(high)["ok"] and answer(low)["ok"]
+        poll_for(1)                                     # both have joined: 11 recessive bits
+        send(high, 0x300, 3)                            # the first 0x300 is on the wire before 0x100 comes
+        send(low, 0x100, 3)
+        poll_for(30)
+        high.settimeout(2)
+        got = b""
+        seen: list[str] = []
+        while len(seen) < 6:
+            got += high.recv(65536)
+            whole = len(got) - len(got) % P.FROM_CLASSROOM.size
+            seen = [("sent " if kind == P.SENT else "") + hex(can_id)
+                    for kind, _, can_id, *_ in P.FROM_CLASSROOM.iter_unpack(got[:whole]) if kind in (P.SENT, P.FRAME)]
+        [name] = [c.name for c in server.clients if c.sock.getpeername() == high.getsockname()]
+        on_the_bus = [("sent " if e.sender == name else "") + hex(e.frame.can_id) for e in bus.trace if e.ok]
+        assert on_the_bus == ["sent 0x300", "0x100", "0x100", "0x100", "sent 0x300", "sent 0x300"]
+        assert seen == on_the_bus, "its own frames come back where the bus carried them"
+
+
+def test_a_program_that_does_not_read_its_answers_is_not_read_so_they_stay_bounded(env):
+    """Every frame record a program sends is answered (SENT, REFUSED or ABORTED), and answers are never dropped: so a
+    program that sends refused records and never reads is no longer read once 64 answers wait; its own socket fills,
+    the classroom's memory stays bounded, and every answer it is owed is there when it reads."""
+    with Served(env) as served:
+        hostile = raw_client(env)
+        hostile.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)       # so that its own socket fills soon
+        assert answer(hostile)["ok"]
+        hostile.settimeout(0.5)
+        too_wide = P.TO_CLASSROOM.pack(P.SEND, 0, 0x900, 1, bytes(8))        # 12 bits for an 11-bit identifier
+        sent = 0                                                            # bytes
+        try:
+            while sent < 15_000_000:
+                sent += hostile.send(too_wide * 100)
+        except (TimeoutError, BlockingIOError):
+            pass
+        [client] = [c for c in served.server.clients if c.node is not None]
+        assert sent < 15_000_000, "its own socket filled: the classroom stopped reading it"
+        assert client.replies_waiting <= 2 * 64 and len(client.outbox) <= 65 * P.FROM_CLASSROOM.size, \
+            "what waits for it stays bounded"
+        got = b""
+        try:
+            while chunk := hostile.recv(65536):                             # until nothing comes for 0.5 s
+                got += chunk
+        except TimeoutError:
+            pass
+        kinds = Counter((kind, data[0]) for kind, _, _, _, data, _ in
+                        P.FROM_CLASSROOM.iter_unpack(got[:len(got) - len(got) % P.FROM_CLASSROOM.size]))
+        refused = kinds[P.REFUSED, P.REFUSALS.index(P.REFUSALS[1])]
+        assert refused == client.frames_in == sent // P.TO_CLASSROOM.size, \
+            "every whole record it sent was read in the end and answered"
+        hostile.close()
+    assert "refused" in served.report, served.report
 
 
 def test_a_listen_only_program_never_acks_and_sees_the_error_frames_of_a_lone_board(env, tmp_path):

@@ -36,6 +36,7 @@ RX_QUEUE = 1024                 # frames and error frames waiting for a program 
 ACCEPT_PER_POLL = 32            # connections taken per poll, so a storm of them cannot stall the simulation
 SEND_BUFFER = 16 * 1024         # the kernel's buffer towards a program (700 frames): what it holds stays small too
 READ_BYTES = 64 * 1024          # read from one program per poll at most
+_REPLIES = frozenset((P.SENT, P.REFUSED, P.ABORTED))     # records that answer what a program sent
 HELLO_TIMEOUT_S = 5.0           # a program that connects and does not say who it is is shown the door
 TOLD_PER_CLIENT = 20            # programs listed by name in the report; the rest are added up
 # A node of this kind: 16 TQ a bit, sampled at 75 %, as the classroom's ECANs (brp 1, so Fosc is 32 x the bit rate).
@@ -168,8 +169,10 @@ class Client:
     node: ClientNode | None = None
     inbox: bytes = b""                  # bytes read and not yet a whole hello or record
     outbox: bytearray = field(default_factory=bytearray)    # bytes for the program, of whole records
-    records: deque[bytes] = field(default_factory=deque)    # frames and error frames waiting for room in outbox
-    control: deque[bytes] = field(default_factory=deque)    # SENT, REFUSED, ABORTED: never dropped (at most TX_QUEUE)
+    records: deque[bytes] = field(default_factory=deque)    # what waits for room in outbox, in the bus's order
+    frames_waiting: int = 0             # ... of them frames and error frames: past rx_queue the newest are dropped
+    replies_waiting: int = 0            # ... of them SENT, REFUSED, ABORTED: never dropped; the program is not read
+                                        # while tx_queue of them wait (it does not read its replies)
     frames_in: int = 0                  # frames the program sent
     delivered: int = 0                  # ... that went through on the bus
     refused: Counter[str] = field(default_factory=Counter)
@@ -190,7 +193,13 @@ class Client:
 
     def sent(self, frame: CanFrame) -> None:
         self.delivered += 1
-        self.control.append(self._pack(P.SENT, frame))
+        self.reply(self._pack(P.SENT, frame))
+
+    def reply(self, record: bytes) -> None:
+        """SENT, REFUSED or ABORTED: kept in order with the frames (its own frame comes back where the bus carried it),
+        never dropped."""
+        self.replies_waiting += 1
+        self.records.append(record)
 
     def state_changed(self) -> None:
         self.state_due = True
@@ -213,19 +222,18 @@ class Client:
     def _queue(self, record: bytes) -> bool:
         """Keep a frame or error frame for the program, if its queue has room; else count it dropped."""
         self.frames_out += 1
-        if len(self.records) >= self.server.rx_queue:
+        if self.frames_waiting >= self.server.rx_queue:
             self.dropped += 1
             self.dropped_untold += 1
             return False
+        self.frames_waiting += 1
         self.records.append(record)
         return True
 
     # ------------------------------------------------------------------ the socket
     def fill_outbox(self) -> None:
-        """Move what waits into the bytes to send, control first; the state and the drops told when they changed."""
+        """Move what waits into the bytes to send, in order; the state and the drops told when they changed."""
         limit = 64 * P.FROM_CLASSROOM.size
-        while self.control:
-            self.outbox += self.control.popleft()
         node = self.node
         if node is not None and self.state_due:
             self.state_due = False
@@ -235,7 +243,12 @@ class Client:
             self.outbox += P.FROM_CLASSROOM.pack(P.LOST, 0, self.dropped_untold, 0, bytes(8), self._now())
             self.dropped_untold = 0
         while self.records and len(self.outbox) < limit:
-            self.outbox += self.records.popleft()
+            record = self.records.popleft()
+            if record[0] in _REPLIES:
+                self.replies_waiting -= 1
+            else:
+                self.frames_waiting -= 1
+            self.outbox += record
 
 
 class ClassroomServer:
@@ -243,9 +256,10 @@ class ClassroomServer:
     127.0.0.1 at a port the system picks and announces it, with a secret token, in the user's private registry.
 
     Call `poll()` often (a `WallClock` does, between slices): it takes new programs, reads their frames into their
-    nodes' queues and sends them what their nodes received. A program whose transmit queue is full is not read until
-    there is room again (its own `send` waits or says the queue is full); one that does not read loses the newest
-    frames past `rx_queue`, counted and told to it. `report()` accounts for every program and frame."""
+    nodes' queues and sends them what their nodes received, in the bus's order (its own frames where the bus carried
+    them). A program whose transmit queue is full is not read until there is room again (its own `send` waits or says
+    the queue is full), nor one that leaves `tx_queue` answers to its frames unread; one that does not read loses the
+    newest frames past `rx_queue`, counted and told to it. `report()` accounts for every program and frame."""
 
     def __init__(self, bus: Bus, channel: str = P.DEFAULT_CHANNEL, *, what: str = "",
                  max_clients: int = MAX_CLIENTS, tx_queue: int = TX_QUEUE, rx_queue: int = RX_QUEUE):
@@ -318,8 +332,8 @@ class ClassroomServer:
             return
         room = READ_BYTES
         if client.node is not None:
-            space = self.tx_queue - len(client.node.queue)
-            if space <= 0:                      # read again once the bus has taken some: the program waits
+            space = self.tx_queue - max(len(client.node.queue), client.replies_waiting)
+            if space <= 0:      # read again once the bus has taken some, or the program has read its replies
                 self._still_there(client)
                 return
             room = space * P.TO_CLASSROOM.size - len(client.inbox)
@@ -424,15 +438,14 @@ class ClassroomServer:
                 for _ in range(waiting):
                     node.queue.pop()
                 client.aborted += waiting
-                client.control.append(P.FROM_CLASSROOM.pack(P.ABORTED, 0, waiting, 0, bytes(8), client._now()))
+                client.reply(P.FROM_CLASSROOM.pack(P.ABORTED, 0, waiting, 0, bytes(8), client._now()))
                 continue
             client.frames_in += 1
             why = P.refusal(flags, can_id, dlc, data, kind, listen_only=node.requested == Mode.LISTEN_ONLY)
             if why is not None:
                 client.refused[why] += 1
-                client.control.append(P.FROM_CLASSROOM.pack(P.REFUSED, 0, 1, 0,
-                                                             bytes((P.REFUSALS.index(why),)).ljust(8, b"\0"),
-                                                             client._now()))
+                client.reply(P.FROM_CLASSROOM.pack(P.REFUSED, 0, 1, 0,
+                                                   bytes((P.REFUSALS.index(why),)).ljust(8, b"\0"), client._now()))
                 continue
             remote = bool(flags & P.REMOTE)
             node.transmit(CanFrame(can_id, b"" if remote else data[:min(dlc, 8)], extended=bool(flags & P.EXTENDED),
