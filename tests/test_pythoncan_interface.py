@@ -232,16 +232,28 @@ def test_its_own_frames_come_back_where_the_bus_carried_them_however_long_the_sl
         bus.sim.run_for(ms / 1000)
         server.poll()
 
+    def client_of(sock: socket.socket) -> Any:
+        return next((c for c in server.clients if c.sock.getpeername() == sock.getsockname()), None)
+
+    def poll_until(condition: Any) -> None:
+        """Poll, the bus stopped, until `condition()` (the bytes sent have crossed the loopback and been read)."""
+        deadline = time.monotonic() + 10
+        while not condition():
+            assert time.monotonic() < deadline, "the server did not read what was sent"
+            time.sleep(0.001)
+            server.poll()
+
     def send(sock: socket.socket, can_id: int, count: int) -> None:
+        client = client_of(sock)
+        before = client.frames_in
         sock.sendall(P.TO_CLASSROOM.pack(P.SEND, 0, can_id, 1, bytes(8)) * count)
-        time.sleep(0.05)                    # on its way through the loopback before the next poll
-        poll_for(0.1)                       # a frame of theirs takes 0.4 ms: the first has started, not ended
+        poll_until(lambda: client.frames_in == before + count)
+        bus.sim.run_for(0.1 / 1000)         # a frame of theirs takes 0.4 ms: the first has started, not ended
 
     with ClassroomServer(bus, "test") as server:
         high, low = raw_client(env), raw_client(env)
-        for _ in range(20):
-            time.sleep(0.01)
-            poll_for(1)
+        poll_until(lambda: len(server.clients) == 2 and all(c.node is not None for c in server.clients))
+        server.poll()                                   # the welcomes go out
         assert answer(high)["ok"] and answer(low)["ok"]
         poll_for(1)                                     # both have joined: 11 recessive bits
         send(high, 0x300, 3)                            # the first 0x300 is on the wire before 0x100 comes
@@ -255,7 +267,7 @@ def test_its_own_frames_come_back_where_the_bus_carried_them_however_long_the_sl
             whole = len(got) - len(got) % P.FROM_CLASSROOM.size
             seen = [("sent " if kind == P.SENT else "") + hex(can_id)
                     for kind, _, can_id, *_ in P.FROM_CLASSROOM.iter_unpack(got[:whole]) if kind in (P.SENT, P.FRAME)]
-        [name] = [c.name for c in server.clients if c.sock.getpeername() == high.getsockname()]
+        name = client_of(high).name
         on_the_bus = [("sent " if e.sender == name else "") + hex(e.frame.can_id) for e in bus.trace if e.ok]
         assert on_the_bus == ["sent 0x300", "0x100", "0x100", "0x100", "sent 0x300", "sent 0x300"]
         assert seen == on_the_bus, "its own frames come back where the bus carried them"
