@@ -3,9 +3,11 @@
 simulated wire; their error state is visible; every hostile or clumsy program is bounded and accounted for."""
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pwd
+import re
 import shutil
 import signal
 import socket
@@ -376,6 +378,153 @@ def test_a_wrong_token_garbage_and_a_silent_hello_are_turned_away_in_words(env):
         assert "longer than" in answer(endless)["error"]
         served.wait_for(lambda s: sum(s.turned_away.values()) == 3)
     assert "turned away 1 x wrong token" in served.report
+
+
+HOSTILE_HELLOS = {
+    "JSON nested 2,000 deep": b"[" * 2000 + b"\n",
+    "a lone surrogate for a token": b'{"appsim": 1, "token": "\\ud800"}\n',
+    "a list": b'[1, 2, 3]\n',
+    "a string": b'"hello"\n',
+    "a token that is a number": b'{"appsim": 1, "token": 7}\n',
+    "bytes that are not UTF-8": b'{"appsim": 1, "token": "\xff\xfe"}\n',
+    "one line of 60 kB": b'{"appsim": 1, "token": "' + b"a" * 60_000 + b'"}\n',
+}
+
+
+@pytest.mark.parametrize("what", HOSTILE_HELLOS)
+def test_a_hostile_hello_is_turned_away_in_words_and_the_classroom_goes_on(env, what):
+    """Whatever a hello holds, the program that sent it is turned away with why, and only it: the classroom keeps
+    running and the program already on it keeps getting its frames."""
+    with Served(env) as served:
+        bystander = raw_client(env)
+        assert answer(bystander)["ok"]
+        hostile = socket.create_connection(("127.0.0.1", served.server.port), timeout=10)
+        hostile.sendall(HOSTILE_HELLOS[what])
+        told = answer(hostile)
+        assert told["ok"] is False and ("did not open as appsim's" in told["error"] or "longer than" in told["error"])
+        assert served.served.running and served.served.failure is None, "the classroom goes on"
+        result = program("""
+            import can
+            with can.Bus(interface='appsim', channel='test') as bus:
+                bus.send(can.Message(arbitration_id=0x123, data=[1], is_extended_id=False), timeout=5)
+        """, env)
+        assert result.returncode == 0, result.stderr
+        bystander.settimeout(5)
+        got = b""
+        while not any(r[0] == P.FRAME and r[2] == 0x123 for r in _records(got)):
+            got += bystander.recv(65536)
+
+
+def _records(data: bytes) -> list[tuple[Any, ...]]:
+    return list(P.FROM_CLASSROOM.iter_unpack(data[:len(data) - len(data) % P.FROM_CLASSROOM.size]))
+
+
+def test_connections_that_never_say_hello_are_bounded_and_a_program_waits_its_turn(env):
+    """A hundred connections that say nothing: past 64 waiting to say hello the next are told at once to come again;
+    none of them counts as a program, and a real program that comes meanwhile asks again until there is room."""
+    with Served(env) as served:
+        silent = [socket.create_connection(("127.0.0.1", served.server.port), timeout=10) for _ in range(100)]
+        served.wait_for(lambda s: sum(s.turned_away.values()) >= 100 - 64)
+        assert len(served.server.clients) <= 64
+        told = [answer(s) for s in silent[64:]]
+        assert all(t["again"] and "64 connections were waiting to say hello already" in t["error"] for t in told)
+        joining = start("""
+            import can
+            with can.Bus(interface='appsim', channel='test') as bus:
+                print(bus.node)
+        """, env)
+        time.sleep(1)
+        for sock in silent:
+            sock.close()
+        out, err = joining.communicate(timeout=30)
+        assert joining.returncode == 0 and out.startswith("pycan"), err
+    assert "x 64 connections were waiting to say hello already" in served.report
+
+
+def test_a_first_packet_of_thousands_of_records_is_held_back_like_any_other(env):
+    """A hello followed at once by 4,000 frame records (and then by refused ones): its node's queue holds 64 frames,
+    the answers waiting for it 64, the rest stays in its own socket."""
+    with Served(env) as served:
+        found = json.loads((Path(env["XDG_RUNTIME_DIR"]) / "appsim" / "test.json").read_text())
+        hostile = socket.create_connection(("127.0.0.1", found["port"]), timeout=10)
+        hostile.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        hello = json.dumps({"appsim": 1, "token": found["token"]}).encode() + b"\n"
+        frame = P.TO_CLASSROOM.pack(P.SEND, 0, 0x55, 1, b"\x55".ljust(8, b"\0"))
+        hostile.setblocking(False)
+        with contextlib.suppress(BlockingIOError):      # nobody ACKs: nothing leaves its queue, so it is not read
+            hostile.sendall(hello + frame * 4000)
+        served.wait_for(lambda s: any(c.node is not None for c in s.clients))
+        [client] = [c for c in served.server.clients if c.node is not None]
+        assert len(client.node.queue) == 64 and len(client.inbox) < P.HELLO_LIMIT, "held back, not buffered"
+
+
+def test_a_lone_frame_retried_for_ever_does_not_grow_what_waits_for_a_program_that_does_not_read(env):
+    """Alone on the bus its frame is never ACKed and is sent again and again: each error changes its counters, but
+    what waits for it (error frames, its state) stays within its bounds while it does not read."""
+    with Served(env, rx_queue=64) as served:
+        lone = raw_client(env)
+        lone.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        assert answer(lone)["ok"]
+        lone.sendall(P.TO_CLASSROOM.pack(P.SEND, 0, 0x42, 0, bytes(8)))
+        [client] = [c for c in served.server.clients if c.node is not None]
+        served.wait_for(lambda s: client.dropped > 2000)
+        assert len(client.outbox) <= 67 * P.FROM_CLASSROOM.size and len(client.records) <= 64
+
+
+def test_a_classroom_ends_within_a_second_however_many_programs_do_not_read(env):
+    """Fifty programs that never read while frames flow: stopping the classroom takes about a second for them all,
+    and its report says what did not reach them."""
+    with Served(env) as served:
+        deaf = []
+        for _ in range(50):
+            sock = raw_client(env)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            assert answer(sock)["ok"]
+            deaf.append(sock)
+        talker = start("""
+            import can, time
+            with can.Bus(interface='appsim', channel='test') as bus:
+                while True:
+                    bus.send(can.Message(arbitration_id=0x200, data=[1] * 8, is_extended_id=False), timeout=10)
+        """, env)
+        served.wait_for(lambda s: all(c.outbox for c in s.clients if c.node is not None and c.node.name != "pycan51"),
+                        timeout=60)
+        started = time.monotonic()
+        served.served.stop()
+        took = time.monotonic() - started
+        talker.kill()
+        talker.wait()
+        for sock in deaf:
+            sock.close()
+    assert took < 3, f"stopping took {took:.1f} s"
+    assert "had not reached programs that were not reading" in served.report, served.report
+
+
+def test_a_frame_on_the_wire_when_its_program_leaves_is_counted_where_it_went(env):
+    """Programs that send and leave at once, a thousand times: the frames the bus carried from them are all counted
+    as gone through, and those it did not as left unsent; the two add up to what they sent."""
+    with Served(env) as served:
+        acker = raw_client(env)
+        assert answer(acker)["ok"]
+        result = program("""
+            import can
+            for _ in range(300):
+                bus = can.Bus(interface='appsim', channel='test')
+                for n in range(5):
+                    bus.send(can.Message(arbitration_id=0x300 + n, is_extended_id=False), timeout=5)
+                bus.shutdown()
+        """, env, timeout=300)
+        assert result.returncode == 0, result.stderr
+        served.wait_for(lambda s: len([c for c in s.clients if c.node is not None]) == 1)
+        time.sleep(0.2)                                         # the last frame on the wire ends
+        carried = sum(1 for e in served.bus.trace if e.ok and e.sender != served.server.clients[0].name)
+        acker.close()
+    numbers = re.search(r"they sent (\d+) frames = (\d+) went through \+ 0 refused \+ 0 taken off by "
+                        r"flush_tx_buffer \+ (\d+) left unsent when the program left \+ 0 still queued",
+                        served.report)
+    assert numbers is not None, served.report
+    sent, through, unsent = map(int, numbers.groups())
+    assert sent == 1500 and through == carried and through + unsent == sent
 
 
 def test_a_program_that_never_reads_loses_the_newest_frames_counted_and_told(env):

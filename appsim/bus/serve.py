@@ -6,11 +6,13 @@ program's queues are bounded both ways, and what cannot be kept is counted, told
 """
 from __future__ import annotations
 
+import contextlib
 import hmac
 import json
 import logging
 import re
 import secrets
+import select
 import selectors
 import socket
 import threading
@@ -37,7 +39,9 @@ ACCEPT_PER_POLL = 32            # connections taken per poll, so a storm of them
 SEND_BUFFER = 16 * 1024         # the kernel's buffer towards a program (700 frames): what it holds stays small too
 READ_BYTES = 64 * 1024          # read from one program per poll at most
 _REPLIES = frozenset((P.SENT, P.REFUSED, P.ABORTED))     # records that answer what a program sent
+CLOSE_S = 1.0                   # what a classroom that ends still sends its programs, to all of them at most
 HELLO_TIMEOUT_S = 5.0           # a program that connects and does not say who it is is shown the door
+GREETING = 64                   # connections at once that have not said hello yet; the next is told to come again
 TOLD_PER_CLIENT = 20            # programs listed by name in the report; the rest are added up
 # A node of this kind: 16 TQ a bit, sampled at 75 %, as the classroom's ECANs (brp 1, so Fosc is 32 x the bit rate).
 TIMING = BitTiming(brp=1, prseg=5, seg1ph=6, seg2ph=4, sjw=4)
@@ -103,16 +107,27 @@ class ClientNode(ErrorCounters):
         self.on_wire = None
         frame = self.queue.popleft()
         self._counters(max(self.tec - 1, 0), self.rec)
-        if self.requested != Mode.DISABLE:      # a program that has left is told nothing more
+        if self.requested != Mode.DISABLE:
             self.client.sent(frame)
+        else:                                   # its program left while it was on the wire: told nothing, counted
+            self.client.server.totals["went through"] += 1
 
     def arbitration_lost(self, buffer: str) -> None:
         self.on_wire = None
-        self.client.error(P.CAN_ERR_LOSTARB, 0, 0)
+        if self.requested != Mode.DISABLE:
+            self.client.error(P.CAN_ERR_LOSTARB, 0, 0)
+        else:
+            self._left_unsent()
 
     def transmission_failed(self, buffer: str, *, tec_increment: int = 8) -> None:
         self.on_wire = None
         self._counters(self.tec + tec_increment, self.rec)
+        if self.requested == Mode.DISABLE:
+            self._left_unsent()
+
+    def _left_unsent(self) -> None:
+        """The frame its program left on the wire did not go through, and never will: it is not sent again."""
+        self.client.server.totals["frames it left before they went through"] += 1
 
     def frame_received(self, frame: CanFrame) -> str:
         if self.rec:
@@ -235,7 +250,7 @@ class Client:
         """Move what waits into the bytes to send, in order; the state and the drops told when they changed."""
         limit = 64 * P.FROM_CLASSROOM.size
         node = self.node
-        if node is not None and self.state_due:
+        if node is not None and self.state_due and len(self.outbox) < limit:     # one, the latest, when room
             self.state_due = False
             self.outbox += P.FROM_CLASSROOM.pack(P.STATE, 0, node.tec | node.rec << 16, 1,
                                                  bytes((node.state,)).ljust(8, b"\0"), self._now())
@@ -303,12 +318,26 @@ class ClassroomServer:
             if key.data is None:
                 self._accept()
             else:
-                self._read(key.data)
+                self._guarded(self._read, key.data)
         now = time.monotonic()
         for client in list(self.clients):
             if client.node is None and not client.closing and now - client.since > HELLO_TIMEOUT_S:
                 self._refuse(client, f"it did not say who it is within {HELLO_TIMEOUT_S:g} s")
-            self._write(client)
+            elif client.node is not None and len(client.inbox) >= P.TO_CLASSROOM.size and not client.closing:
+                self._guarded(self._records, client)        # what it sent before there was room for it
+            self._guarded(self._write, client)
+
+    def _guarded(self, step: Callable[[Client], None], client: Client) -> None:
+        """A step of one program's, which must not end the classroom for the others whatever the program sent: should
+        the classroom fail on it, that program alone is shown the door, and the failure is logged for appsim's
+        authors."""
+        try:
+            step(client)
+        except Exception as error:
+            log.exception("the classroom failed on what %s sent", client.name)
+            self.totals["failed on a program"] += 1
+            self._left(client, f"the classroom failed on what it sent ({type(error).__name__}: {error}): a fault of "
+                               "appsim's, please report it")
 
     def _accept(self) -> None:
         for _ in range(ACCEPT_PER_POLL):
@@ -320,6 +349,10 @@ class ClassroomServer:
                 self.turned_away[f"could not accept: {error.strerror or error}"] += 1
                 return
             sock.setblocking(False)
+            if sum(c.node is None and not c.closing for c in self.clients) >= GREETING:
+                self._turn_away_now(sock, f"{GREETING} connections were waiting to say hello already: connect "
+                                          "again in a few seconds")     # appsim's python-can interface does
+                continue
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER)
             client = Client(self, sock, f"{peer[0]}:{peer[1]}")
@@ -330,13 +363,16 @@ class ClassroomServer:
         if client.closing:
             self._drain(client)
             return
-        room = READ_BYTES
+        room = P.HELLO_LIMIT + 1 - len(client.inbox)        # before its hello: the hello, at most
         if client.node is not None:
-            space = self.tx_queue - max(len(client.node.queue), client.replies_waiting)
+            space = self._room(client)
             if space <= 0:      # read again once the bus has taken some, or the program has read its replies
                 self._still_there(client)
                 return
             room = space * P.TO_CLASSROOM.size - len(client.inbox)
+            if room <= 0:                       # its inbox holds that many records already
+                self._records(client)
+                return
         try:
             chunk = client.sock.recv(max(room, 1))
         except (BlockingIOError, InterruptedError):
@@ -352,6 +388,12 @@ class ClassroomServer:
             self._hello(client)
         else:
             self._records(client)
+
+    def _room(self, client: Client) -> int:
+        """Records the program may still send: its node's queue holds `tx_queue` frames, and `tx_queue` answers at
+        most wait for it."""
+        assert client.node is not None
+        return self.tx_queue - max(len(client.node.queue), client.replies_waiting)
 
     def _still_there(self, client: Client) -> None:
         """A program not read now (its queue is full) that has closed its end leaves all the same."""
@@ -375,23 +417,24 @@ class ClassroomServer:
 
     def _hello(self, client: Client) -> None:
         line, newline, rest = client.inbox.partition(b"\n")
+        if len(line) > P.HELLO_LIMIT:
+            self._refuse(client, f"its hello was longer than {P.HELLO_LIMIT} bytes")
+            return
         if not newline:
-            if len(client.inbox) > P.HELLO_LIMIT:
-                self._refuse(client, f"its hello was longer than {P.HELLO_LIMIT} bytes")
             return
         try:
             hello = json.loads(line)
-            token = hello["token"]
-            if not isinstance(token, str) or hello.get("appsim") != P.PROTOCOL:
+            token = hello["token"].encode()
+            if hello.get("appsim") != P.PROTOCOL:
                 raise ValueError
-        except (ValueError, KeyError, TypeError):
+        except (ValueError, KeyError, TypeError, AttributeError, RecursionError):   # UnicodeError is a ValueError
             self._refuse(client, "it did not open as appsim's python-can interface does (a JSON hello with the "
                                  "classroom's token): use can.Bus(interface='appsim', ...)")
             return
-        if not hmac.compare_digest(token.encode(), self.token.encode()):
+        if not hmac.compare_digest(token, self.token.encode()):
             self._refuse(client, "wrong token: a program may join only a classroom its own user serves")
             return
-        if len(self.clients) - 1 >= self.max_clients:
+        if sum(c.node is not None for c in self.clients) >= self.max_clients:
             self._refuse(client, f"the classroom is full: {self.max_clients} python-can programs are on it already")
             return
         client.inbox = rest
@@ -431,7 +474,7 @@ class ClassroomServer:
         node = client.node
         assert node is not None
         size = P.TO_CLASSROOM.size
-        whole = len(client.inbox) - len(client.inbox) % size
+        whole = min(len(client.inbox) // size, max(self._room(client), 0)) * size
         for kind, flags, can_id, dlc, data in P.TO_CLASSROOM.iter_unpack(client.inbox[:whole]):
             if kind == P.FLUSH:
                 waiting = len(node.queue) - (node.on_wire is not None)
@@ -467,6 +510,13 @@ class ClassroomServer:
             return
         del client.outbox[:sent]
 
+    def _turn_away_now(self, sock: socket.socket, why: str) -> None:
+        """A connection not taken now: told why (and to come again) if its socket takes the line at once, closed."""
+        with contextlib.suppress(OSError):
+            sock.send(json.dumps({"appsim": P.PROTOCOL, "ok": False, "again": True, "error": why}).encode() + b"\n")
+        sock.close()
+        self.turned_away[why] += 1
+
     def _refuse(self, client: Client, why: str) -> None:
         """Tell the program why it cannot join, then close (once that is sent)."""
         client.outbox = bytearray(json.dumps({"appsim": P.PROTOCOL, "ok": False, "error": why}).encode() + b"\n")
@@ -487,7 +537,7 @@ class ClassroomServer:
             return
         if client.inbox:
             self.totals["bytes of a record cut off when it left"] += len(client.inbox)
-        self.totals["frames it left before they went through"] += len(node.queue)     # the one on the wire too
+        self.totals["frames it left before they went through"] += len(node.queue) - (node.on_wire is not None)
         node.request(Mode.DISABLE)              # it sends nothing more; the frame on the wire, if any, ends
         self._free.append(node)
         self._account(client)
@@ -546,6 +596,13 @@ class ClassroomServer:
             if client.dropped or client.refused:
                 lines.append(f"  {client.name}: {client.dropped} frames dropped (it did not read them in time)"
                              + "".join(f"; refused {n} x {why}" for why, n in client.refused.items()))
+        if totals["unsent at the end: frames"] or totals["unsent at the end: bytes"]:
+            lines.append(f"  when the classroom ended, {totals['unsent at the end: frames']} frames and error frames "
+                         f"(and {totals['unsent at the end: bytes']} bytes on their way) had not reached programs "
+                         "that were not reading")
+        if totals["failed on a program"]:
+            lines.append(f"  {totals['failed on a program']} programs were shown the door when the classroom failed on "
+                         "what they sent (a fault of appsim's: the log says where)")
         if totals["bytes of a record cut off when it left"]:
             lines.append(f"  {totals['bytes of a record cut off when it left']} bytes of unfinished records were "
                          "dropped when programs left in the middle of one")
@@ -567,19 +624,33 @@ class ClassroomServer:
         """Stop serving: the announcement is withdrawn, every program's connection closed (their recv then says the
         classroom ended)."""
         P.withdraw(self.announcement, self.token)
+        deadline = time.monotonic() + CLOSE_S
         for client in list(self.clients):
-            client.fill_outbox()
-            try:
-                client.sock.setblocking(True)
-                client.sock.settimeout(0.2)
-                client.sock.sendall(client.outbox)
-            except OSError:
-                pass
+            self._last_words(client, deadline)
+            if client.frames_waiting or client.outbox:
+                self.totals["unsent at the end: frames"] += client.frames_waiting
+                self.totals["unsent at the end: bytes"] += len(client.outbox)
             self._left(client, "the classroom ended")
         self._selector.close()
         self._listener.close()
         if self._event in self.bus.trace.listeners:
             self.bus.trace.listeners.remove(self._event)
+
+    @staticmethod
+    def _last_words(client: Client, deadline: float) -> None:
+        """What waits for the program, sent as far as it reads it by `deadline` (one for them all: a program that does
+        not read holds nobody up)."""
+        client.fill_outbox()
+        while client.outbox and time.monotonic() < deadline:
+            try:
+                sent = client.sock.send(client.outbox)
+            except (BlockingIOError, InterruptedError):
+                select.select([], [client.sock], [], max(0.0, min(0.05, deadline - time.monotonic())))
+                continue
+            except OSError:
+                return
+            del client.outbox[:sent]
+            client.fill_outbox()
 
     def __enter__(self) -> ClassroomServer:
         return self

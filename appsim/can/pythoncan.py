@@ -257,6 +257,24 @@ class AppsimBus(can.BusABC):
 
     # ------------------------------------------------------------------ connecting
     def _connect(self, timeout: float, name: str | None, listen_only: bool) -> socket.socket:
+        """The connection, once the classroom has welcomed this node; a classroom busy with other programs' hellos
+        (it says to come again) is asked again until `timeout` has passed."""
+        deadline = time.monotonic() + timeout
+        while True:
+            sock, answer = self._knock(max(deadline - time.monotonic(), 0.1), name, listen_only)
+            if answer.get("ok"):
+                break
+            sock.close()
+            if not (answer.get("again") is True and time.monotonic() < deadline):
+                raise can.CanInitializationError(
+                    f"appsim: the classroom {self.channel!r} refused this node: {answer.get('error')}")
+            time.sleep(0.05)
+        sock.settimeout(None)
+        self._hello: dict[str, Any] = answer
+        return sock
+
+    def _knock(self, timeout: float, name: str | None, listen_only: bool) -> tuple[socket.socket, dict[str, Any]]:
+        """Connect and say hello: the socket and the classroom's answer (a dict)."""
         path = announcement(self.channel)
         found = read_announcement(path)
         if found is None:
@@ -276,20 +294,18 @@ class AppsimBus(can.BusABC):
         hello = {"appsim": PROTOCOL, "token": found["token"], "name": name, "listen_only": bool(listen_only)}
         try:
             sock.sendall(json.dumps(hello).encode() + b"\n")
-            line = self._line(sock)
-            answer = json.loads(line)
+            answer = json.loads(self._line(sock))
         except (OSError, ValueError) as error:
             sock.close()
             raise can.CanInitializationError(
                 f"appsim: the classroom served as {self.channel!r} did not answer as an appsim classroom does "
                 f"({error}): is another program using its port? Start it again") from None
-        if not isinstance(answer, dict) or not answer.get("ok"):
+        if not isinstance(answer, dict):
             sock.close()
-            why = answer.get("error") if isinstance(answer, dict) else None
-            raise can.CanInitializationError(f"appsim: the classroom {self.channel!r} refused this node: {why}")
-        sock.settimeout(None)
-        self._hello: dict[str, Any] = answer
-        return sock
+            raise can.CanInitializationError(
+                f"appsim: the classroom served as {self.channel!r} did not answer as an appsim classroom does: "
+                "is another program using its port? Start it again")
+        return sock, answer
 
     @staticmethod
     def _line(sock: socket.socket) -> bytes:
