@@ -331,6 +331,75 @@ def test_a_listen_only_program_never_acks_and_sees_the_error_frames_of_a_lone_bo
     assert "ACK error" in out and "ACK by" not in out, "nobody ACKs the board: the listen-only node never does"
 
 
+def test_a_clumsy_program_gets_can_errors_in_words_and_a_dropped_bus_is_collected(env):
+    """After shutdown() (also while another thread waits in recv), and after the classroom ended, send, flush and recv
+    are can.CanOperationErrors that say which; a NaN timeout or a send of something else than a can.Message says what
+    is wrong, an infinite timeout waits; a bus dropped without shutdown() is collected and leaves the classroom."""
+    with Served(env) as served:
+        acker = raw_client(env)
+        assert answer(acker)["ok"]
+        clumsy = start("""
+            import can, gc, math, signal, sys, threading, time, weakref
+            signal.alarm(60)                                # whatever happens, it does not hang the tests
+            def attempt(what, call):
+                try:
+                    call()
+                    print(what, "returned")
+                except (can.CanOperationError, ValueError, TypeError) as error:
+                    print(what, type(error).__name__, error)
+            m = can.Message(arbitration_id=0x10, data=[1], is_extended_id=False)
+            bus = can.Bus(interface='appsim', channel='test', receive_own_messages=True)
+            attempt("nan", lambda: bus.recv(timeout=math.nan))
+            attempt("not a message", lambda: bus.send("hello"))
+            bus.send(m)
+            print("forever", hex(bus.recv(timeout=math.inf).arbitration_id))
+            waiting = []
+            def reader():
+                try:
+                    bus.recv(None)
+                except can.CanOperationError as error:
+                    waiting.append(str(error))
+            thread = threading.Thread(target=reader)
+            thread.start()
+            time.sleep(0.3)
+            bus.shutdown()
+            thread.join(5)
+            print("waiting in recv:", waiting)
+            for what, call in (("send", lambda: bus.send(m)), ("flush", bus.flush_tx_buffer),
+                               ("recv", lambda: bus.recv(0.1))):
+                attempt(what + " after shutdown", call)
+            refs = [weakref.ref(can.Bus(interface='appsim', channel='test')) for _ in range(5)]
+            gc.collect()
+            time.sleep(0.5)
+            print("alive", sum(r() is not None for r in refs),
+                  sum(t.name.startswith("appsim-") for t in threading.enumerate()))
+            keeper = can.Bus(interface='appsim', channel='test')
+            print("ready", flush=True)
+            sys.stdin.readline()
+            time.sleep(0.5)
+            for what, call in (("send", lambda: keeper.send(m)), ("flush", keeper.flush_tx_buffer),
+                               ("recv", lambda: keeper.recv(0.1))):
+                attempt(what + " after the end", call)
+        """, env)
+        lines = []
+        while (line := clumsy.stdout.readline()) and line.strip() != "ready":
+            lines.append(line.strip())
+        served.wait_for(lambda s: sum(c.node is not None for c in s.clients) == 2)     # the acker, the keeper
+    out, err = clumsy.communicate("\n", timeout=30)
+    lines += out.splitlines()
+    text = "\n".join(lines)
+    assert "nan ValueError appsim: recv's timeout is a number of seconds" in text, text
+    assert "not a message TypeError appsim: send takes a can.Message, not str" in text, text
+    [waiting] = [line for line in lines if line.startswith("waiting in recv:")]
+    assert "forever 0x10" in text and "this bus was shut down" in waiting, text
+    for what in ("send", "flush", "recv"):
+        assert f"{what} after shutdown CanOperationError" in text and text.count("this bus was shut down") >= 4, text
+        assert f"{what} after the end CanOperationError" in text, text
+    assert text.count("the classroom ended (appsim stopped serving it)") == 3, text
+    assert "alive 0 0" in text, "the dropped buses were collected, their readers ended"
+    assert "Traceback" not in err, err
+
+
 def test_a_classroom_that_is_not_served_is_a_clear_initialization_error(env):
     result = program("""
         import can

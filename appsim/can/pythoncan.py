@@ -18,6 +18,7 @@ import sys
 import tempfile
 import threading
 import time
+import weakref
 from collections import deque
 from collections.abc import Sequence
 from pathlib import Path
@@ -189,8 +190,43 @@ def refusal(flags: int, can_id: int, dlc: int, data: bytes, kind: int = SEND, *,
     return None
 
 
+def _reader(ref: weakref.ref[AppsimBus], sock: socket.socket) -> None:
+    """The bus's reader thread: what the classroom sends, taken into the bus while there is one. Between reads it holds
+    only a weak reference, so a bus dropped without `shutdown()` (a notebook cell run again) is collected, and shut
+    down, as python-can's own buses are."""
+    pending = b""
+    why = "the classroom ended (appsim stopped serving it)"
+    try:
+        while chunk := sock.recv(65536):
+            pending += chunk
+            whole = len(pending) - len(pending) % FROM_CLASSROOM.size
+            bus = ref()
+            if bus is None:
+                return
+            bus._took(pending[:whole])
+            del bus
+            pending = pending[whole:]
+    except OSError as error:
+        why = f"the connection to the classroom broke ({error})"
+    bus = ref()
+    if bus is not None:
+        bus._end(why)
+
+
+def _deadline(timeout: float | None, what: str) -> float | None:
+    """When a wait of `timeout` seconds (None: for ever) ends, on time.monotonic()'s clock."""
+    if timeout is None or timeout >= threading.TIMEOUT_MAX:          # math.inf: for ever, as asked
+        return None
+    if timeout != timeout:
+        raise ValueError(f"appsim: {what}'s timeout is a number of seconds (or None: wait for ever), not NaN")
+    return time.monotonic() + timeout
+
+
 def _record(message: can.Message) -> bytes:
     """The record that sends `message`; a ValueError that says what CAN cannot carry."""
+    if not isinstance(message, can.Message):
+        raise TypeError(f"appsim: send takes a can.Message, not {type(message).__name__}: "
+                        "bus.send(can.Message(arbitration_id=0x123, data=[1, 2]))")
     if message.is_error_frame:
         raise ValueError("appsim: a program cannot send an error frame; CAN controllers send them when they see errors")
     if message.is_fd:
@@ -251,7 +287,8 @@ class AppsimBus(can.BusABC):
         self._ended: str | None = None
         self._lock = threading.Condition()
         self._send_lock = threading.Lock()
-        self._reader = threading.Thread(target=self._read, name=f"appsim-{self.channel}", daemon=True)
+        self._reader = threading.Thread(target=_reader, args=(weakref.ref(self), self._sock),
+                                        name=f"appsim-{self.channel}", daemon=True)
         self._reader.start()
         super().__init__(channel, can_filters=can_filters, **kwargs)
 
@@ -320,27 +357,14 @@ class AppsimBus(can.BusABC):
                 raise ValueError("its answer is too long")
         return bytes(line)
 
-    # ------------------------------------------------------------------ the reader thread
-    def _read(self) -> None:
-        pending = b""
-        why = "the classroom ended (appsim stopped serving it)"
-        try:
-            while True:
-                chunk = self._sock.recv(65536)
-                if not chunk:
-                    break
-                pending += chunk
-                whole = len(pending) - len(pending) % FROM_CLASSROOM.size
-                with self._lock:
-                    for record in FROM_CLASSROOM.iter_unpack(pending[:whole]):
-                        self._take(*record)
-                    self._lock.notify_all()
-                pending = pending[whole:]
-        except OSError as error:
-            if self._is_shutdown:
-                why = "this bus was shut down"
-            else:
-                why = f"the connection to the classroom broke ({error})"
+    # ------------------------------------------------------------------ the reader thread (see `_reader`)
+    def _took(self, records: bytes) -> None:
+        with self._lock:
+            for record in FROM_CLASSROOM.iter_unpack(records):
+                self._take(*record)
+            self._lock.notify_all()
+
+    def _end(self, why: str) -> None:
         with self._lock:
             self._ended = self._ended or why
             self._lock.notify_all()
@@ -381,8 +405,10 @@ class AppsimBus(can.BusABC):
 
     # ------------------------------------------------------------------ python-can's side
     def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        deadline = None if timeout is None else time.monotonic() + timeout
+        deadline = _deadline(timeout, "recv")
         with self._lock:
+            if self._is_shutdown:
+                raise can.CanOperationError(f"appsim: {self.channel_info}: {self._ended}")
             while not self._received:
                 if self._ended is not None:
                     raise can.CanOperationError(f"appsim: {self.channel_info}: {self._ended}")
@@ -399,7 +425,7 @@ class AppsimBus(can.BusABC):
             raise can.CanOperationError(f"appsim: {self.channel_info} is in Listen-only mode: it never sends (open "
                                         "the bus without listen_only=True to send)")
         record = _record(msg)
-        deadline = None if timeout is None else time.monotonic() + timeout
+        deadline = _deadline(timeout, "send")
         with self._lock:
             while self._outstanding >= self.tx_queue:
                 if self._ended is not None:
@@ -414,16 +440,22 @@ class AppsimBus(can.BusABC):
             if self._ended is not None:
                 raise can.CanOperationError(f"appsim: {self.channel_info}: {self._ended}")
             self._outstanding += 1
+        self._send(record)
+
+    def flush_tx_buffer(self) -> None:
+        """Take the frames still waiting in this node's transmit queue off it (the one on the wire finishes)."""
+        with self._lock:
+            if self._ended is not None:
+                raise can.CanOperationError(f"appsim: {self.channel_info}: {self._ended}")
+        self._send(TO_CLASSROOM.pack(FLUSH, 0, 0, 0, bytes(8)))
+
+    def _send(self, record: bytes) -> None:
         try:
             with self._send_lock:
                 self._sock.sendall(record)
         except OSError as error:
-            raise can.CanOperationError(f"appsim: {self.channel_info}: could not send: {error}") from None
-
-    def flush_tx_buffer(self) -> None:
-        """Take the frames still waiting in this node's transmit queue off it (the one on the wire finishes)."""
-        with self._send_lock:
-            self._sock.sendall(TO_CLASSROOM.pack(FLUSH, 0, 0, 0, bytes(8)))
+            raise can.CanOperationError(f"appsim: {self.channel_info}: {self._ended or f'could not send: {error}'}") \
+                from None
 
     @property
     def state(self) -> can.BusState:
@@ -442,6 +474,7 @@ class AppsimBus(can.BusABC):
     def shutdown(self) -> None:
         if self._is_shutdown:
             return
+        self._end("this bus was shut down")
         super().shutdown()
         with contextlib.suppress(OSError):
             self._sock.shutdown(socket.SHUT_RDWR)
