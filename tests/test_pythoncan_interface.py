@@ -331,6 +331,43 @@ def test_a_listen_only_program_never_acks_and_sees_the_error_frames_of_a_lone_bo
     assert "ACK error" in out and "ACK by" not in out, "nobody ACKs the board: the listen-only node never does"
 
 
+def test_a_classroom_out_of_file_descriptors_goes_on_and_says_how_often_it_could_not_take_one(env, tmp_path):
+    """The classroom's process may hold 40 files: forty connections that never say hello exhaust it. It does not fail:
+    the report says it could not take connections (tries, not programs), and once they are gone a program joins."""
+    script = tmp_path / "starved.py"
+    script.write_text(dedent("""
+        import resource, socket, sys, time
+        sys.path[:0] = sys.argv[1:]
+        from pythoncan_clients import Served
+        resource.setrlimit(resource.RLIMIT_NOFILE, (40, 40))
+        import can                                      # loaded before the limit bites
+        with Served({"XDG_RUNTIME_DIR": sys.argv[3]}) as served:
+            port = served.server.port
+            held = []
+            for _ in range(60):
+                try:
+                    held.append(socket.create_connection(("127.0.0.1", port), timeout=1))
+                except OSError:
+                    break
+            time.sleep(0.5)
+            starved = sum(served.server.accept_failures.values())
+            for sock in held:
+                sock.close()
+            time.sleep(0.5)
+            import os
+            os.environ["XDG_RUNTIME_DIR"] = sys.argv[3]
+            with can.Bus(interface="appsim", channel="test") as bus:
+                print("joined", bus.node)
+            print("running", served.served.running, "starved", starved > 0, flush=True)
+        print(served.report)
+    """))
+    result = subprocess.run([sys.executable, str(script), str(KIT / "tests"), str(KIT), env["XDG_RUNTIME_DIR"]],
+                            env=env, capture_output=True, text=True, timeout=60)
+    assert "joined pycan" in result.stdout and "running True starved True" in result.stdout, \
+        result.stdout + result.stderr
+    assert "could not take a connection (Too many open files): " in result.stdout, result.stdout
+
+
 def test_a_clumsy_program_gets_can_errors_in_words_and_a_dropped_bus_is_collected(env):
     """After shutdown() (also while another thread waits in recv), and after the classroom ended, send, flush and recv
     are can.CanOperationErrors that say which; a NaN timeout or a send of something else than a can.Message says what

@@ -288,6 +288,7 @@ class ClassroomServer:
         self.gone_count = 0
         self.totals: Counter[str] = Counter()
         self.turned_away: Counter[str] = Counter()
+        self.accept_failures: Counter[str] = Counter()   # why accept() failed -> how many times (not programs)
         self._free: list[ClientNode] = []   # nodes of programs that left, reused by the next (the bus only grows so)
         self._numbers = 0
         self._selector = selectors.DefaultSelector()
@@ -345,8 +346,8 @@ class ClassroomServer:
                 sock, peer = self._listener.accept()
             except (BlockingIOError, InterruptedError):
                 return
-            except OSError as error:            # out of file descriptors, say: the others go on
-                self.turned_away[f"could not accept: {error.strerror or error}"] += 1
+            except OSError as error:            # out of file descriptors, say: the others go on, it is tried again
+                self.accept_failures[error.strerror or str(error)] += 1
                 return
             sock.setblocking(False)
             if sum(c.node is None and not c.closing for c in self.clients) >= GREETING:
@@ -607,6 +608,8 @@ class ClassroomServer:
             lines.append(f"  {totals['bytes of a record cut off when it left']} bytes of unfinished records were "
                          "dropped when programs left in the middle of one")
         lines += [f"  turned away {count} x {why}" for why, count in self.turned_away.items()]
+        lines += [f"  could not take a connection ({why}): {count} tries, each poll while it lasted"
+                  for why, count in self.accept_failures.items()]
         return "\n".join(lines)
 
     @staticmethod
