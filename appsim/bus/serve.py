@@ -39,6 +39,8 @@ ACCEPT_PER_POLL = 32            # connections taken per poll, so a storm of them
 SEND_BUFFER = 16 * 1024         # the kernel's buffer towards a program (700 frames): what it holds stays small too
 READ_BYTES = 64 * 1024          # read from one program per poll at most
 _REPLIES = frozenset((P.SENT, P.REFUSED, P.ABORTED))     # records that answer what a program sent
+HELD_LOOK_S = 0.1               # how often a program not read now is looked at (has it closed its end?)
+WRITE_AGAIN_S = 0.005           # a program whose socket is full is not written to again before then
 CLOSE_S = 1.0                   # what a classroom that ends still sends its programs, to all of them at most
 HELLO_TIMEOUT_S = 5.0           # a program that connects and does not say who it is is shown the door
 GREETING = 64                   # connections at once that have not said hello yet; the next is told to come again
@@ -197,6 +199,9 @@ class Client:
     dropped_untold: int = 0
     state_due: bool = False
     closing: str = ""                   # why it is being shown the door, "" while it is welcome
+    held: bool = False                  # not read now (no room for what it sends): out of the selector meanwhile
+    looked_at: float = 0.0              # when a held program was last seen to be still there
+    write_again_at: float = 0.0         # its socket was full: not tried again before then
 
     @property
     def name(self) -> str:
@@ -324,9 +329,12 @@ class ClassroomServer:
         for client in list(self.clients):
             if client.node is None and not client.closing and now - client.since > HELLO_TIMEOUT_S:
                 self._refuse(client, f"it did not say who it is within {HELLO_TIMEOUT_S:g} s")
+            elif client.held:
+                self._guarded(self._room_again, client)
             elif client.node is not None and len(client.inbox) >= P.TO_CLASSROOM.size and not client.closing:
                 self._guarded(self._records, client)        # what it sent before there was room for it
-            self._guarded(self._write, client)
+            if now >= client.write_again_at:
+                self._guarded(self._write, client)
 
     def _guarded(self, step: Callable[[Client], None], client: Client) -> None:
         """A step of one program's, which must not end the classroom for the others whatever the program sent: should
@@ -368,7 +376,7 @@ class ClassroomServer:
         if client.node is not None:
             space = self._room(client)
             if space <= 0:      # read again once the bus has taken some, or the program has read its replies
-                self._still_there(client)
+                self._hold(client)
                 return
             room = space * P.TO_CLASSROOM.size - len(client.inbox)
             if room <= 0:                       # its inbox holds that many records already
@@ -395,6 +403,21 @@ class ClassroomServer:
         most wait for it."""
         assert client.node is not None
         return self.tx_queue - max(len(client.node.queue), client.replies_waiting)
+
+    def _hold(self, client: Client) -> None:
+        """A program not read now is out of the selector (so that what waits in its socket costs nothing at each
+        poll) until there is room again; meanwhile it is looked at now and then."""
+        self._selector.unregister(client.sock)
+        client.held, client.looked_at = True, time.monotonic()
+
+    def _room_again(self, client: Client) -> None:
+        if self._room(client) > 0:
+            self._selector.register(client.sock, selectors.EVENT_READ, client)
+            client.held = False
+            self._read(client)
+        elif time.monotonic() - client.looked_at >= HELD_LOOK_S:
+            client.looked_at = time.monotonic()
+            self._still_there(client)
 
     def _still_there(self, client: Client) -> None:
         """A program not read now (its queue is full) that has closed its end leaves all the same."""
@@ -505,6 +528,7 @@ class ClassroomServer:
         try:
             sent = client.sock.send(client.outbox)
         except (BlockingIOError, InterruptedError):
+            client.write_again_at = time.monotonic() + WRITE_AGAIN_S
             return
         except OSError as error:
             self._left(client, f"its connection broke ({error.strerror or error})")
@@ -531,7 +555,8 @@ class ClassroomServer:
         if client not in self.clients:
             return
         self.clients.remove(client)
-        self._selector.unregister(client.sock)
+        if not client.held:
+            self._selector.unregister(client.sock)
         client.sock.close()
         node = client.node
         if node is None:
