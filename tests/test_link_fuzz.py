@@ -260,6 +260,42 @@ def test_datagrams_udp_multicast_cannot_decode_are_counted_and_the_board_goes_on
     assert result["received"] == 2 and "100 [5] 01 02 03 01 41" in result["frames"], "the board answered the RTR"
 
 
+ECHOES = """
+import json, socket, sys, time
+from appsim.bus.link import ECHOES_AWAITED, BusLink
+from appsim.bus.wire import Bus
+from appsim.can.frame import CanFrame
+from appsim.sim import Simulator
+
+bus = Bus(Simulator(), 125_000)
+with BusLink(bus, interface="udp_multicast", channel=sys.argv[1]) as link:
+    for n in range(10):                                 # loopback on: each echo comes back, in order, and is skipped
+        link.frame_from_simulation(CanFrame(0x123, bytes([n])))
+    deadline = time.monotonic() + 5
+    while link.echoes < 10 and time.monotonic() < deadline:
+        link.poll()
+    came = (link.echoes, link.echoes_lost, link.received)
+    link.outside._multicast._socket.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 0)    # echoes lost now
+    for n in range(3 * ECHOES_AWAITED):
+        link.frame_from_simulation(CanFrame(0x124, n.to_bytes(2, "big")))
+    print(json.dumps({"came": came, "awaited": len(link._awaited), "lost": link.echoes_lost, "most": ECHOES_AWAITED,
+                      "report": link.report()}))
+"""
+
+
+@pytest.mark.netns
+def test_the_links_own_frames_whose_multicast_echo_never_comes_are_given_up_counted_not_kept(namespaces):
+    """udp_multicast hands the link its own frames back, which it skips; an echo that never comes (the kernel dropped
+    it, loopback is off) is awaited no longer than 4,096 frames: memory stays bounded, and the report counts them."""
+    [pc] = namespaces(1)
+    done = pc.python(ECHOES, UdpMulticastBus.DEFAULT_GROUP_IPv4, timeout=60)
+    assert done.returncode == 0, done.stdout
+    result = json.loads(done.stdout.splitlines()[-1])
+    assert result["came"] == [10, 0, 0], "each echo came back and none was taken as a frame from outside"
+    assert result["awaited"] == result["most"] and result["lost"] == 2 * result["most"]
+    assert f"{2 * result['most']} of the link's own frames never came back" in result["report"]
+
+
 def test_a_short_frame_with_the_masters_id_from_outside_does_not_stop_the_stations():
     sim, bus, room = classroom()
     outside = ScriptedBus([None] * 300 + [message(MASTER_ID, b"\x01\x02")])

@@ -16,7 +16,7 @@ import socket
 import struct
 import sys
 import time
-from collections import Counter
+from collections import Counter, deque
 from typing import Any
 
 import can
@@ -34,6 +34,7 @@ READ_BUDGET_S = 0.0003      # an in-process bus (python-can's virtual) is read f
 PYTHON_QUEUE_FRAMES = 1024  # frames a python-can queue the link reads may hold; the newest beyond are dropped, counted
 WARN_EVERY_PS = PS_PER_SECOND   # drops are reported as they happen, at most once a simulated second
 REOPEN_EVERY_S = 1.0        # an interface that is gone is opened again this often (wall seconds) until it is back
+ECHOES_AWAITED = 4096       # own frames whose multicast echo is awaited; past that the oldest is given up, counted
 KINDS_KEPT = 16             # reasons told apart in one tally; later new ones are counted together
 OTHER_KINDS = f"other reasons (beyond the first {KINDS_KEPT} kinds; the log names each the first time)"
 
@@ -169,11 +170,15 @@ class BusLink:
         self.dropped = 0            # ... that found the queue full
         self.dropped_unread = 0     # frames python-can's queue held beyond PYTHON_QUEUE_FRAMES: dropped before reading
         self.echoes = 0
+        self.echoes_lost = 0        # own frames whose echo never came (the kernel dropped it, or loopback is off)
         self.reopened = 0
         self.rejected: Counter[str] = Counter()
         self.send_failures: Counter[str] = Counter()
         self.receive_errors: Counter[str] = Counter()
-        self._echoes: Counter[CanFrame] | None = Counter() if echoes_own_frames(self.outside) else None
+        # udp_multicast: own frames whose echo is awaited, in the order sent (the echoes come back in that order),
+        # and how many of each frame are among them
+        self._awaited: deque[CanFrame] | None = deque() if echoes_own_frames(self.outside) else None
+        self._echoes: Counter[CanFrame] = Counter()
         self._port = bus.attach_outside(self)
         self._reopen_at: float | None = None
         self._kernel_closed = 0     # drops counted on sockets closed since (an interface opened again, the link closed)
@@ -221,8 +226,12 @@ class BusLink:
             self._failed(self.send_failures, "could not send", error)
             return
         self.sent += 1
-        if self._echoes is not None:
+        if self._awaited is not None:
+            self._awaited.append(frame)
             self._echoes[frame] += 1
+            if len(self._awaited) > ECHOES_AWAITED:
+                self._forget_oldest()
+                self.echoes_lost += 1
 
     def poll(self) -> None:
         """Bring in what arrived outside since the last poll: each frame contends for the simulated bus now, or is
@@ -272,13 +281,22 @@ class BusLink:
             self.bus.from_outside(self, frame)
 
     def _is_echo(self, frame: CanFrame) -> bool:
-        if self._echoes is None or not self._echoes[frame]:
+        """Whether `frame` is the echo of one of the link's own frames. The echoes come back in the order sent, so
+        the ones awaited before it, whose echoes did not come, are given up."""
+        if self._awaited is None or not self._echoes[frame]:
             return False
+        while self._forget_oldest() != frame:
+            self.echoes_lost += 1
+        self.echoes += 1
+        return True
+
+    def _forget_oldest(self) -> CanFrame:
+        assert self._awaited is not None
+        frame = self._awaited.popleft()
         self._echoes[frame] -= 1
         if not self._echoes[frame]:
             del self._echoes[frame]
-        self.echoes += 1
-        return True
+        return frame
 
     # ------------------------------------------------------------------ trouble, told as it happens
     def _tally(self, counter: Counter[str], what: str) -> None:
@@ -348,6 +366,9 @@ class BusLink:
                          "(the socket's receive buffer was full)")
         if self.echoes:
             lines.append(f"  {self.echoes} of the link's own frames came back (multicast loopback) and were skipped")
+        if self.echoes_lost:
+            lines.append(f"  {self.echoes_lost} of the link's own frames never came back (their multicast echo was "
+                         "dropped, or loopback is off): no longer awaited, so an identical frame from outside is taken")
         lines += [f"  {count} x {what}" for what, count in (self.receive_errors + self.send_failures).items()]
         if self.reopened:
             lines.append(f"  the outside bus was gone and opened again {self.reopened} time(s)")
