@@ -586,7 +586,8 @@ def test_a_first_packet_of_thousands_of_records_is_held_back_like_any_other(env)
         hostile.setblocking(False)
         with contextlib.suppress(BlockingIOError):      # nobody ACKs: nothing leaves its queue, so it is not read
             hostile.sendall(hello + frame * 4000)
-        served.wait_for(lambda s: any(c.node is not None for c in s.clients))
+        served.wait_for(lambda s: any(c.node is not None and len(c.node.queue) == 64 for c in s.clients))
+        time.sleep(0.2)                                 # it would grow past 64 now, if it could
         [client] = [c for c in served.server.clients if c.node is not None]
         assert len(client.node.queue) == 64 and len(client.inbox) < P.HELLO_LIMIT, "held back, not buffered"
 
@@ -616,11 +617,11 @@ def test_a_classroom_ends_within_a_second_however_many_programs_do_not_read(env)
             deaf.append(sock)
         talker = start("""
             import can, time
-            with can.Bus(interface='appsim', channel='test') as bus:
+            with can.Bus(interface='appsim', channel='test', name='talker') as bus:
                 while True:
                     bus.send(can.Message(arbitration_id=0x200, data=[1] * 8, is_extended_id=False), timeout=10)
         """, env)
-        served.wait_for(lambda s: all(c.outbox for c in s.clients if c.node is not None and c.node.name != "pycan51"),
+        served.wait_for(lambda s: all(c.outbox for c in s.clients if c.node is not None and c.node.name != "talker"),
                         timeout=60)
         started = time.monotonic()
         served.served.stop()

@@ -175,6 +175,14 @@ def controller_status(node: ClientNode) -> int:
     return status or P.CAN_ERR_CRTL_ACTIVE
 
 
+def _refusal(why: str, *, again: bool = False) -> bytes:
+    """The line that turns a program away, with why (and, with `again`, that it may come again soon)."""
+    answer: dict[str, object] = {"appsim": P.PROTOCOL, "ok": False, "error": why}
+    if again:
+        answer["again"] = True
+    return json.dumps(answer).encode() + b"\n"
+
+
 @dataclass
 class Client:
     """One connected program: its socket, its node once it has said hello, its queues and its account."""
@@ -538,13 +546,13 @@ class ClassroomServer:
     def _turn_away_now(self, sock: socket.socket, why: str) -> None:
         """A connection not taken now: told why (and to come again) if its socket takes the line at once, closed."""
         with contextlib.suppress(OSError):
-            sock.send(json.dumps({"appsim": P.PROTOCOL, "ok": False, "again": True, "error": why}).encode() + b"\n")
+            sock.send(_refusal(why, again=True))
         sock.close()
         self.turned_away[why] += 1
 
     def _refuse(self, client: Client, why: str) -> None:
         """Tell the program why it cannot join, then close (once that is sent)."""
-        client.outbox = bytearray(json.dumps({"appsim": P.PROTOCOL, "ok": False, "error": why}).encode() + b"\n")
+        client.outbox = bytearray(_refusal(why))
         client.records.clear()
         client.closing = why
         self.turned_away[why] += 1
