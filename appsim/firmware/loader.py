@@ -61,10 +61,10 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
         from appsim.firmware import c18
         return c18.load(path, source, defines, c_options)
     tree = _parse(path, source)
-    linecache.cache[str(path)] = (len(source), None, source.decode("utf-8").splitlines(True), str(path))
+    linecache.cache[str(path)] = (len(source), None, source.decode("utf-8-sig").splitlines(True), str(path))
     if defines:
         _apply_defines(tree, defines, path)
-    waits_for_interrupts(tree, path, source.decode("utf-8").splitlines())
+    waits_for_interrupts(tree, path, source.decode("utf-8-sig").splitlines())
     try:
         code = compile(tree, str(path), "exec")
     except SyntaxError as error:
@@ -199,8 +199,11 @@ def _near(path: Path) -> str | None:
 
 def _parse(path: Path, source: bytes) -> ast.Module:
     try:
-        return ast.parse(source.decode("utf-8"), filename=str(path))
+        return ast.parse(source.decode("utf-8-sig"), filename=str(path))     # Notepad's UTF-8 starts with a BOM
     except UnicodeDecodeError as error:
+        if source.startswith((b"\xff\xfe", b"\xfe\xff")):
+            raise FirmwareError(f"{path.name} is saved as UTF-16 (Unicode): save it as UTF-8, as every Python editor "
+                                "does by default") from None
         raise FirmwareError(f"{path.name} is not UTF-8 text (byte {error.start} is 0x{source[error.start]:02X}): "
                             "save it as UTF-8, as every Python editor does by default") from None
     except SyntaxError as error:

@@ -86,10 +86,13 @@ def check_options(options: Sequence[str]) -> tuple[str, ...]:
 
 
 def decode(source: bytes, name: str) -> str:
-    """The file's text: UTF-8, else Big5 (the workshop's Traditional Chinese comments), else Latin-1."""
+    """The file's text: UTF-8 (with Notepad's BOM or without), else Big5 (the workshop's Traditional Chinese
+    comments), else Latin-1."""
+    if source.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise CCompileError(f"{name} is saved as UTF-16 (Unicode): save it as UTF-8 or ANSI, as MPLAB's editor does")
     if b"\0" in source:
         raise CCompileError(f"{name} holds NUL bytes: it is not a C source file")
-    for encoding in ("utf-8", "cp950"):
+    for encoding in ("utf-8-sig", "cp950"):
         try:
             return source.decode(encoding)
         except UnicodeDecodeError:
@@ -254,7 +257,7 @@ def _translate(filename: str, source: bytes, defines: Mapping[str, int], options
     return Translated(code, namespace, constants_, tuple(done.defines))
 
 
-_ASM = re.compile(r'#line (\d+)[^\n]*\n|\n|"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|[(\[{]|[)\]}]|'
+_ASM = re.compile(r'#line (\d+)[^\n]*\n|#\s*pragma\b|#|\n|"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|[(\[{]|[)\]}]|'
                   r'\b_asm\s+goto\s+([A-Za-z_]\w*)\s+_endasm\b|\b_asm\b|\b__asm\b|\basm\b', re.IGNORECASE)
 
 
@@ -267,6 +270,12 @@ def _refuse_what_cannot_parse(text: str, filename: str) -> str:
     done = 0
     for match in _ASM.finditer(text):
         token = match.group(0)
+        if token[0] == "#" and not (match.group(1) or token != "#") or token[0] == "#" and text[
+                text.rfind("\n", 0, match.start()) + 1:match.start()].strip(" \t\f\v"):
+            raise CCompileError("a stray '#' in the code: # begins a preprocessor directive (#define, #include ...), "
+                                "which stands at the start of its own line", filename, line)
+        if token[0] == "#" and not match.group(1):
+            continue                    # #pragma: the translator reads it
         if match.group(1):
             line = int(match.group(1))
         elif token == "\n":
@@ -294,20 +303,48 @@ def _parse_error(error: ParseError, filename: str, text: str) -> CCompileError:
     message = str(error)
     match = re.match(r"(?:(.*?):)?(\d+):(\d+): (.*)", message)
     if not match:
-        return CCompileError(f"syntax error: {message}", filename)
+        if message.endswith("At end of input"):
+            opened = _unclosed_brace(text)
+            where = f" (the last '{{' not closed is at line {opened})" if opened else ""
+            return CCompileError(f"the file ends inside a function or a declaration: a '}}' or a ';' is missing"
+                                 f"{where}", filename, opened or 0)
+        return CCompileError(f"syntax error: {message.split(': ', 1)[-1]}", filename)
     line, column, what = int(match.group(2)), int(match.group(3)), match.group(4)
+    if what.startswith("Comments are not supported"):
+        return CCompileError("a comment that is never closed: each /* needs its */", filename, line, column)
+    if what == "Illegal character '\"'":
+        return CCompileError("a string with no closing quote: a \" needs its closing \" on the same line", filename,
+                             line, column)
     what = what.replace("before: ", "syntax error before '") + ("'" if what.startswith("before: ") else "")
     source_line = text.splitlines()[line - 1] if 0 < line <= len(text.splitlines()) else ""
     hint = ""
-    if "before" in what and line > 1:
+    if "before" in what and 1 < line <= len(text.splitlines()) + 1:
         previous = text.splitlines()[line - 2].rstrip()
         ends = (";", "{", "}", ",", "/", "*", "(", "&&", "||", "&", "|", "+", "-", "=", "?", ":")
         control = previous.lstrip().split("(")[0].strip() in ("if", "while", "for", "switch", "else if")
-        if (previous and not previous.endswith(ends) and not previous.lstrip().startswith("#")
+        if what == "syntax error before '{'" and previous.endswith(")") and not control:
+            hint = " (a function's body where C still expects code: is the '}' that ends the function above missing?)"
+        elif (previous and not previous.endswith(ends) and not previous.lstrip().startswith("#")
                 and not (previous.endswith(")") and control)):
             hint = " (is a ';' missing at the end of the line before?)"
     shown = f": `{source_line.strip()}`" if source_line.strip() else ""
     return CCompileError(f"{what}{hint}{shown}", filename, line, column)
+
+
+_BRACES = re.compile(r'/\*.*?\*/|//[^\n]*|"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|[{}\n]', re.DOTALL)
+
+
+def _unclosed_brace(text: str) -> int | None:
+    """The line of the last '{' of the file that no '}' closes (comments, strings and characters skipped)."""
+    line, opened = 1, []
+    for match in _BRACES.finditer(text):
+        token = match.group(0)
+        if token == "{":
+            opened.append(line)
+        elif token == "}" and opened:
+            opened.pop()
+        line += token.count("\n")
+    return opened[-1] if opened else None
 
 
 def header_symbols(header: str, options: tuple[str, ...], *, parsed: bool = False) -> dict[str, Sym]:

@@ -1016,8 +1016,12 @@ class Translator:
             codes = _string_codes(node.value[1:-1], self, node, quoted=False)
             if len(codes) != 1:
                 raise self.refuse(node, f"{node.value} is not one character")
-            value = codes[0] - 0x100 if codes[0] >= 0x80 else codes[0]
-            t = T.CHAR if not self.promote else T.INT
+            plain_char = T.integer_type(["char"], self.unsigned_char)     # signed, unsigned with -k
+            assert plain_char is not None
+            value = codes[0] & 0xFF
+            if plain_char.signed and value >= 0x80:
+                value -= 0x100
+            t = plain_char if not self.promote else T.INT      # -Oi: an int, with the plain char's value
             return E(ast.Constant(value), t, value, value, value)
         if kind in ("float", "double"):
             raise self.refuse(node, "floating point is not supported by the kit's C yet: compute in integers")
@@ -1927,6 +1931,9 @@ def _string_codes(text: str, tr: Translator, node: Any, quoted: bool = True) -> 
     i = 0
     while i < len(text):
         c = text[i]
+        if c == '"' and quoted and text.startswith('" "', i):
+            i += 3                      # where pycparser kept two adjacent literals apart: "\x41" "BC" is A, B, C
+            continue
         if c != "\\":
             code = ord(c)
             if code > 0xFF:
@@ -1940,13 +1947,15 @@ def _string_codes(text: str, tr: Translator, node: Any, quoted: bool = True) -> 
             j = i + 1
             while j < len(text) and text[j] in "0123456789abcdefABCDEF":
                 j += 1
-            codes.append(int(text[i + 1:j] or "0", 16) & 0xFF)
+            if j == i + 1:
+                raise tr.refuse(node, "\\x without hexadecimal digits after it: write \\x41 for 'A'")
+            codes.append(_escape_code(f"\\{text[i:j]}", int(text[i + 1:j], 16), tr, node))
             i = j
         elif c in "01234567":
             j = i
             while j < len(text) and j < i + 3 and text[j] in "01234567":
                 j += 1
-            codes.append(int(text[i:j], 8) & 0xFF)
+            codes.append(_escape_code(f"\\{text[i:j]}", int(text[i:j], 8), tr, node))
             i = j
         elif c in _ESCAPES:
             codes.append(_ESCAPES[c])
@@ -1954,6 +1963,15 @@ def _string_codes(text: str, tr: Translator, node: Any, quoted: bool = True) -> 
         else:
             raise tr.refuse(node, f"\\{c} is not an escape C knows")
     return codes
+
+
+def _escape_code(escape: str, code: int, tr: Translator, node: Any) -> int:
+    """An escape's character code, refused past one byte (C requires a diagnostic there; C18 gives one)."""
+    if code > 0xFF:
+        raise tr.refuse(node, f"the escape {escape} is out of range: a char holds 0..255 (0xFF, \\377). \\x takes "
+                              "every hexadecimal digit after it: end the string there (\"\\x41\" \"BC\") to "
+                              "follow it with a letter")
+    return code
 
 
 _COMPARE = {"==": ast.Eq, "!=": ast.NotEq, "<": ast.Lt, "<=": ast.LtE, ">": ast.Gt, ">=": ast.GtE}

@@ -140,11 +140,13 @@ class _Walled(pcpp.Preprocessor):
         """As pcpp's, but the file keeps the name it is given (pcpp would make it absolute): tokens, #line markers
         and every message name it so."""
         self.ignore = ignore or {}
+        self.text = input
         self.parser = self.parsegen(input, source, source)
 
     def token(self) -> Any:
         """As pcpp's (the next token not ignored), the file's size limited as its tokens go out: one call a token,
-        where a writer of its own would add another."""
+        where a writer of its own would add another. A directive pcpp cannot read (`#ifdef` with no name: it fails
+        on it) is refused in words, at its line."""
         parser, ignore = self.parser, self.ignore
         try:
             while True:
@@ -154,13 +156,26 @@ class _Walled(pcpp.Preprocessor):
                     if self.written > MAX_OUTPUT_CHARS:
                         self.fail(0, f"the preprocessed file passed {MAX_OUTPUT_CHARS:,} characters: a firmware "
                                      "file is a few thousand lines at most")
+                    self.last_line = tok.lineno
                     return tok
         except StopIteration:
             self.parser = None
             return None
+        except (IndexError, KeyError, TypeError, ValueError, AttributeError):
+            line, text = _unreadable_directive(self.text, getattr(self, "last_line", 1))
+            self.fail(line, f"the preprocessor cannot read `{text}`: #define, #undef, #ifdef and #ifndef need a "
+                            "name after them, #if and #elif an expression, #pragma what it sets (such as #ifdef DEBUG, "
+                            "#if RATE == 125, #pragma config WDT = OFF)")
+            raise
 
     # -------------------------------------------------------------- pcpp's hooks
     def on_error(self, file: str, line: int, msg: str) -> None:
+        evaluated = re.match(r"Could not evaluate expression due to (\w+)\(.*\(passed to evaluator: '(.*)'\)", msg,
+                             re.DOTALL)
+        if evaluated:
+            why = ("it divides by zero" if evaluated.group(1) == "ZeroDivisionError" else
+                   "#if and #elif take an integer expression of numbers and macros, such as #if RATE == 125")
+            self.fail(line, f"the preprocessor cannot evaluate #if {evaluated.group(2)}: {why}")
         self.fail(line, f"{msg} (the preprocessor)")
 
     def on_directive_unknown(self, directive: Any, toks: Any, ifpassthru: Any, precedingtoks: Any) -> Any:
@@ -300,6 +315,26 @@ class _Walled(pcpp.Preprocessor):
         if time.process_time() > self.deadline:
             self.fail(result[0].lineno if result else 0, "the preprocessor ran out of its time")
         return result
+
+
+_DIRECTIVE = re.compile(r"\s*#\s*(\w*)(.*)")
+
+
+def _unreadable_directive(text: str, from_line: int) -> tuple[int, str]:
+    """The first directive from line `from_line` on that lacks what it needs (a name, an expression), with its line;
+    else the first directive there."""
+    lines = text.splitlines()
+    first: tuple[int, str] | None = None
+    for number in range(max(from_line, 1), len(lines) + 1):
+        found = _DIRECTIVE.match(lines[number - 1])
+        if not found:
+            continue
+        first = first or (number, lines[number - 1].strip())
+        argument = _COMMENT.sub(" ", found.group(2)).strip()
+        if found.group(1) in ("define", "undef", "ifdef", "ifndef", "if", "elif", "pragma") and (
+                not argument or not re.search(r"\w", argument)):
+            return number, lines[number - 1].strip()
+    return first or (from_line, "")
 
 
 def _literal(value: int) -> str:

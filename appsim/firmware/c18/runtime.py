@@ -313,7 +313,11 @@ def _int_of(arg: Arg, size: int, signed: bool, spec: str, what: str = "an int") 
             f"{arg.spelled} ({arg.size} byte{'s' if arg.size > 1 else ''}): C18 pushes it as it is ({why}), so "
             f"{spec} reads {'bytes past it' if size > arg.size else 'part of it and leaves the rest'}, and what it "
             f"shows is not {shown}. Cast the argument to the size {spec} reads"
-            + (f", or write {fix}" if fix and fix != spec else ""))
+            + (f", or write {fix}" if fix and fix != spec else "")
+            + ("" if arg.constant or size < arg.size else
+               f". If it is computed from chars (RxData[3] << 8), C18 computed it in {arg.size} "
+               f"byte{'s' if arg.size > 1 else ''} and its high part is lost already: cast the chars before the "
+               "arithmetic, ((int)RxData[3] << 8) | RxData[4]"))
     bits = 8 * size
     value = arg.value & ((1 << bits) - 1)
     if signed and value >= 1 << (bits - 1):

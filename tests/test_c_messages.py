@@ -1,0 +1,115 @@
+"""What a C file the kit cannot take is told, in C's words at its line, never as an exception of Python's; and what it
+takes means what C18 makes of it (found by fuzzing the translator and by trying the CLI as students would)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from appsim.errors import CCompileError
+from appsim.firmware import c18
+from appsim.workshop.checks import check
+from appsim.workshop.course import SOLUTIONS
+
+EX1 = (SOLUTIONS / "ex1.c").read_text()
+MAIN = "void main(void) { while (1); }\n"
+
+
+def _refusal(source: str | bytes, options: tuple[str, ...] = ()) -> CCompileError:
+    data = source.encode() if isinstance(source, str) else source
+    with pytest.raises(CCompileError) as refused:
+        c18.translate("ex1.c", data, {}, options)
+    return refused.value
+
+
+@pytest.mark.parametrize("directive", ["#ifdef", "#ifndef", "#define", "#undef", "#pragma", "#if !"])
+def test_a_directive_without_what_it_needs_is_refused_at_its_line(directive):
+    """pcpp raised IndexError on each of these: a traceback for the student, a grader fault in a class."""
+    refused = _refusal(f"int a;\n{directive}\n" + ("#endif\n" if directive.startswith("#if") else "") + MAIN)
+    assert refused.line == 2 and (f"cannot read `{directive}`" in str(refused)
+                                  or f"cannot evaluate {directive}" in str(refused)), refused
+
+
+@pytest.mark.parametrize("source, line", [("void main(void) { int x #line 500\n }\n", 1),
+                                          ("void main(void) {\n int x;\n x = 1 # 3\n;}\n", 3)])
+def test_a_stray_hash_in_the_code_is_refused_and_never_moves_the_line_count(source, line):
+    """`#line 500` in mid-line made the error reporter index past the file (IndexError); `x = 1 # 3` moved every later
+    line number silently."""
+    refused = _refusal(source)
+    assert refused.line == line and "a stray '#'" in str(refused)
+
+
+def test_a_hash_in_a_string_and_a_pragma_are_no_stray_hash():
+    c18.translate("ex1.c", b'#pragma config WDT = OFF\nrom char s[] = "a#b";\nchar c = \'#\';\n' + MAIN.encode(),
+                  {}, ())
+
+
+@pytest.mark.parametrize("source, words, line", [
+    (EX1 + "\n/* never closed\n", "a comment that is never closed", 93),
+    (EX1.replace('putrsGLCD("EX1 LOOPBACK");', 'putrsGLCD("EX1 LOOPBACK);'), "a string with no closing quote", 71),
+    (EX1.replace("void main(void)\n{", "void main(void)\n{\n{", 1), "the file ends inside a function", 66),
+    (EX1.replace("    CANSetOperationMode(CAN_OP_MODE_LOOP);\n}", "    CANSetOperationMode(CAN_OP_MODE_LOOP);\n"),
+     "is the '}' that ends the function above missing?", 58),
+    ('#if "x"\n#endif\n' + EX1, "#if and #elif take an integer expression", 1),
+    ("#if 1/0\n#endif\n" + EX1, "#if 1/0: it divides by zero", 1),
+], ids=["comment", "string", "extra {", "missing }", "#if string", "#if 1/0"])
+def test_a_syntax_error_is_told_in_cs_words_at_its_line(source, words, line):
+    refused = _refusal(source)
+    assert words in str(refused) and refused.line == line, refused
+    for python_words in ("pycparser", "AttributeError", "ZeroDivisionError", "Illegal character", "At end of input"):
+        assert python_words not in str(refused)
+
+
+def test_a_file_saved_with_notepads_bom_loads_in_c_and_in_python(tmp_path):
+    for name in ("ex1.c", "ex1.py"):
+        path = tmp_path / name
+        path.write_bytes(b"\xef\xbb\xbf" + (SOLUTIONS / name).read_bytes())
+        verdict = check("ex1", path, seed=3).to_dict()
+        assert verdict["score"] == verdict["max_score"], (name, verdict)
+
+
+def test_a_file_saved_as_utf16_is_told_so():
+    assert "saved as UTF-16" in str(_refusal(EX1.encode("utf-16")))
+
+
+def test_a_character_constant_is_a_plain_char_so_unsigned_with_k():
+    source = ("#include \"CAN18XX8.h\"\nunsigned int u; int i; char c;\n"
+              "void main(void) { u = '\\xff'; i = '\\xff'; c = '\\xff'; while (1) CANIsRxReady(); }\n")
+    module = c18.load(Path("k.c"), source.encode(), None, ("-k",))
+    assert "u = 255" in _startup_and_main(module, ["u", "i", "c"]), "'\\xff' is 255 when plain char is unsigned"
+    module = c18.load(Path("k.c"), source.encode(), None, ("-k", "-Oi"))
+    assert "i = 255" in _startup_and_main(module, ["u", "i", "c"])
+    module = c18.load(Path("k.c"), source.encode(), None, ())
+    assert "u = 65535" in _startup_and_main(module, ["u", "i", "c"]), "C18's default: '\\xff' is the char -1"
+
+
+def _startup_and_main(module, names: list[str]) -> str:
+    """Run the translated main() until its endless loop, on a board, and show the globals `names`."""
+    from conftest import World
+    world = World()
+    world.node("n", module.main)
+    world.run(0.001)
+    return ", ".join(f"{name} = {vars(module)[name]}" for name in names)
+
+
+@pytest.mark.parametrize("literal", ["'\\x41BC'", '"\\777"', "'\\x'"])
+def test_an_escape_out_of_range_is_refused(literal):
+    assert "\\x" in str(_refusal(f"int r;\nvoid main(void) {{ r = {literal}[0]; while (1); }}\n"
+                                    if literal.startswith('"') else
+                                    f"int r;\nvoid main(void) {{ r = {literal}; while (1); }}\n"))
+
+
+def test_adjacent_string_literals_keep_their_escapes_apart():
+    """pycparser keeps "\\x41" "BC" as two literals in one constant; their quotes were read as characters."""
+    module = c18.load(Path("s.c"), b'char s[4] = "\\x41" "BC";\nchar t[3] = "\\1" "23";\n' + MAIN.encode(), None, ())
+    assert (vars(module)["s"], vars(module)["t"]) == ([0x41, 0x42, 0x43, 0], [1, 0x32, 0x33])
+
+
+def test_the_no_cast_mistake_is_told_how_to_fix_it(tmp_path):
+    """`(RxData[3] << 8) | RxData[4]` passed to %4d: casting the whole expression would not help, C18 computed it in
+    one byte already; the message says to cast the chars."""
+    path = tmp_path / "ex1.c"
+    path.write_text(EX1.replace("((int)RxData[3] << 8) | RxData[4]", "(RxData[3] << 8) | RxData[4]"))
+    verdict = check("ex1", path, seed=1).to_dict()
+    message = verdict["checks"][0]["message"]
+    assert "cast the chars before the arithmetic, ((int)RxData[3] << 8) | RxData[4]" in message, message
