@@ -9,6 +9,7 @@ from itertools import pairwise
 from appsim.bus.wire import BusEvent
 from appsim.chip.usart import PC_BAUD
 from appsim.sim import PS_PER_SECOND
+from appsim.workshop.checks.judging import heard_nothing, nothing_to_judge
 from appsim.workshop.checks.trial import Trial, count, listing, quoted, took_part
 from appsim.workshop.checks.verdict import CheckResult
 
@@ -90,6 +91,9 @@ def _invisible(trial: Trial) -> CheckResult:
                                              "part in the bus it watches (a sender alone on the bus would think "
                                              "someone heard it). CANSetOperationMode(CAN_OP_MODE_LISTEN) after "
                                              "CANInitialize(): it never ACKs nor flags errors (TODO 2).")
+    if heard_nothing(trial, trial.bus.frames()):
+        return CheckResult(INVISIBLE, False, nothing_to_judge(trial, "heard none of the bus's frames, as a monitor "
+                                                                     "must: in Listen-only mode it hears every one"))
     return CheckResult(INVISIBLE, True, f"No frame sent, no ACK given, in {trial.mode()} mode.")
 
 

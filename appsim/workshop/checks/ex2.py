@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from appsim.workshop.checks.judging import (
     data_frames,
+    nothing_to_judge,
     on_the_bus,
     once_per_overflow,
     sent_anywhere,
@@ -31,6 +32,8 @@ def run(trial: Trial) -> list[CheckResult]:
 
 
 def _not_own(trial: Trial) -> CheckResult:
+    if not sent_anywhere(trial):
+        return CheckResult(NOT_OWN, False, nothing_to_judge(trial, "sent no frame, so none could come back to it"))
     own = [e for e in trial.bus.loopback_trace if e.sender == trial.name and took(trial.reception(e))]
     if own:
         return CheckResult(NOT_OWN, False, f"{trial.reception(own[0])} received the node's own "

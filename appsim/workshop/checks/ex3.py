@@ -4,7 +4,7 @@ The master's potentiometer moves halfway through, so the LCD must follow every f
 """
 from __future__ import annotations
 
-from appsim.workshop.checks.judging import data_frames, master_kept_off, on_the_bus
+from appsim.workshop.checks.judging import data_frames, heard_nothing, master_kept_off, nothing_to_judge, on_the_bus
 from appsim.workshop.checks.trial import (
     MASTER_ID,
     Trial,
@@ -88,6 +88,8 @@ def _rejects(trial: Trial) -> CheckResult:
     if not others:
         return CheckResult(REJECTS, False, "No other station's frame went through the bus to judge by "
                                            "(see the other checks).")
+    if heard_nothing(trial, others):
+        return CheckResult(REJECTS, False, nothing_to_judge(trial, "heard none of the other stations' frames"))
     taken = [e for e in others if took(trial.reception(e))]
     if taken:
         return CheckResult(REJECTS, False, f"RXB0/RXB1 took {listing(taken)}: {trial.acceptance('RXB0')}. "

@@ -52,6 +52,12 @@ def _listens(trial: Trial, first: BusEvent, before: list[BusEvent]) -> CheckResu
                                            "CANSetOperationMode(CAN_OP_MODE_LISTEN) after it, with CAN_CONFIG_ALL_MSG "
                                            "(TODO 1, 2).")
     heard = trial.reception(first)
+    if not heard:
+        return CheckResult(LISTENS, False, f"Your node was not on the bus when the master's first 0x088 went by "
+                                           f"({ms(first.end_ps)}): it heard nothing, which is not listening. A node "
+                                           "in Listen-only mode hears every frame, and sends and ACKs none: "
+                                           "CANSetOperationMode(CAN_OP_MODE_LISTEN) after CANInitialize(), with "
+                                           "CAN_CONFIG_ALL_MSG (TODO 1, 2).")
     return CheckResult(LISTENS, True, f"Nothing sent, nothing ACKed until the master's first 0x088 ended at "
                                       f"{ms(first.end_ps)}" + (f" (it went into {heard})." if took(heard) else "."))
 

@@ -77,6 +77,11 @@ def run(trial: Trial) -> list[CheckResult]:
         if reply is not None:
             answers[id(poll)] = reply
     unasked = [(s, _trigger(trial, frames, s)) for s in mine if all(s is not a for a in answers.values())]
+    if not mine:                        # silence is right only for a node that answers when asked
+        idle = ("Nothing to judge: your node sent no frame at all, not one answer to the polls (see the first "
+                "check). Silence is right only for a node that answers when asked.")
+        return [_answers(trial, polls, answers), _rxb1(trial, frames), CheckResult(SILENT, False, idle),
+                CheckResult(DATA, False, idle)]
     return [_answers(trial, polls, answers), _rxb1(trial, frames), _silent(trial, unasked), _data(trial, unasked)]
 
 

@@ -53,6 +53,18 @@ def master_kept_off(trial: Trial) -> str:
     return "The master's 0x088 never went through the bus, so there was nothing to judge by."
 
 
+def heard_nothing(trial: Trial, events: list[BusEvent]) -> bool:
+    """The student's node took part in none of `events` (it was not on the bus, in Normal or Listen-only mode, when
+    they went by): a check of what it leaves undone with them has nothing to judge."""
+    return not any(trial.reception(e) for e in events)
+
+
+def nothing_to_judge(trial: Trial, what: str) -> str:
+    """Why a check of what the node leaves undone fails when the node never took part: doing nothing is no merit."""
+    return (f"Nothing to judge: your node {what} (it is in {trial.mode()} mode), and a node that takes no part in the "
+            "bus does nothing right or wrong there. See the checks above: CANInitialize() puts it on the bus.")
+
+
 def sent_anywhere(trial: Trial) -> list[BusEvent]:
     """The student's frames on the bus, or if none, the ones that went round inside it in Loopback mode."""
     return trial.sent() or [e for e in trial.bus.loopback_trace if e.sender == trial.name]
