@@ -57,10 +57,11 @@ MISTAKES = [
     Mistake("ex2_tmr1if_not_cleared", "ex2",
             [("            PIR1bits.TMR1IF = 0\n", "")],
             {EX2_PERIOD}, ["a burst", "PIR1bits.TMR1IF = 0"]),
-    # Listen-only mode instead of Normal: it hears the bus but can never send.
+    # Listen-only mode instead of Normal: it hears the bus but never sends, so no frame of its own can come back.
     Mistake("ex2_listen_only", "ex2",
             [("CANSetOperationMode(CAN_OP_MODE_NORMAL)", "CANSetOperationMode(CAN_OP_MODE_LISTEN)")],
-            {EX2_ON_BUS, EX2_FRAMES, EX2_PERIOD}, ["Listen-only mode", "CAN_OP_MODE_NORMAL"]),
+            {EX2_ON_BUS, EX2_FRAMES, EX2_PERIOD, EX2_NOT_OWN}, ["Listen-only mode", "CAN_OP_MODE_NORMAL",
+                                                               "Nothing to judge"]),
     # Timer1 at 1:1 instead of 1:8: it overflows every 6.5536 ms, not 52.4288 ms.
     Mistake("ex2_prescaler_1_1", "ex2",
             [("T1_PS_1_8", "T1_PS_1_1")],
@@ -97,7 +98,8 @@ MISTAKES = [
     # Left in Loopback mode (the EX1 setting): it neither sends on the bus nor receives the master.
     Mistake("ex3_loopback", "ex3",
             [("CANSetOperationMode(CAN_OP_MODE_NORMAL)", "CANSetOperationMode(CAN_OP_MODE_LOOP)")],
-            {EX3_RXB0, EX3_LCD, EX3_SENDS}, ["Loopback mode", "CAN_OP_MODE_NORMAL"]),
+            {EX3_RXB0, EX3_LCD, EX3_REJECTS, EX3_SENDS}, ["Loopback mode", "CAN_OP_MODE_NORMAL",
+                                                          "heard none of the other stations' frames"]),
 
     # CANInitialize() again after the first 0x088, without setting the mask and filter again: the masks stay 0.
     Mistake("ex4_filters_not_set_again", "ex4",
