@@ -113,3 +113,21 @@ def test_the_no_cast_mistake_is_told_how_to_fix_it(tmp_path):
     verdict = check("ex1", path, seed=1).to_dict()
     message = verdict["checks"][0]["message"]
     assert "cast the chars before the arithmetic, ((int)RxData[3] << 8) | RxData[4]" in message, message
+
+
+def test_the_value_of_a_function_that_ends_without_return_is_an_error_where_it_is_used(tmp_path):
+    """It was Python's "unsupported operand type(s) for &: 'NoneType' and 'int'"; a call whose value is not used, or
+    one that returns on the way taken, runs on as in C."""
+    from appsim.firmware.loader import crash_message
+    source = ('#include "CAN18XX8.h"\nunsigned char TxData[8];\nint f(void) { }\nint g(int x) { if (x) return 1; }\n'
+              "void main(void)\n{\n    g(1);\n    f();\n    TxData[0] = g(1);\n    TxData[1] = f();\n"
+              "    while (1) CANIsRxReady();\n}\n")
+    module = c18.load(Path("nov.c"), source.encode(), None, ())
+    from conftest import World
+    world = World()
+    process = world.node("n", module.main).process
+    world.sim.run_for(0.001)
+    assert process.failure is not None
+    message = crash_message(process.failure, "nov.c")
+    assert "line 10" in message and "f() (line 3) ended without return" in message, message
+    assert "NoneType" not in message and vars(module)["TxData"][0] == 1

@@ -605,6 +605,9 @@ class Translator:
             if isinstance(ptype, Struct):
                 prologue.append(self.at(param, ast.Assign([_name(psym.py, True)], _rt("copy", [_name(psym.py)]))))
         body = prologue + self.block(node.body.block_items or [], new_scope=False)
+        if not isinstance(ftype.result, Void) and name != "main" and not (body and isinstance(body[-1], ast.Return)):
+            line = getattr(node.decl.coord, "line", 0) or 0     # its end may be reached: the value it then gives
+            body.append(self.at(node, ast.Return(_rt("NoValue", [ast.Constant(name), ast.Constant(line)]))))
         self.scopes.pop()
         self.tags.pop()
         self.function = None

@@ -71,6 +71,27 @@ class Ptr:
         return f"&{self.name}[{self.i - self.lo}]"
 
 
+class NoValue:
+    """What a function that ended without `return` gives (C18 leaves whatever the W register held): using it in any
+    way, arithmetic, a comparison, a store into a register, is a run-time error that says so."""
+
+    __slots__ = ("function", "line")
+
+    def __init__(self, function: str, line: int):
+        self.function, self.line = function, line
+
+    def _used(self, *args: object) -> Any:
+        raise CRuntimeError(f"the value of {self.function}() is used, but {self.function}() (line {self.line}) ended "
+                            "without return: C18 gives whatever the W register held, garbage. End it with return and "
+                            "its value")
+
+    __add__ = __radd__ = __sub__ = __rsub__ = __mul__ = __rmul__ = __floordiv__ = __rfloordiv__ = _used
+    __truediv__ = __rtruediv__ = __mod__ = __rmod__ = __lshift__ = __rlshift__ = __rshift__ = __rrshift__ = _used
+    __and__ = __rand__ = __or__ = __ror__ = __xor__ = __rxor__ = __neg__ = __pos__ = __invert__ = __abs__ = _used
+    __lt__ = __le__ = __gt__ = __ge__ = __eq__ = __ne__ = __bool__ = __int__ = __index__ = _used
+    __hash__ = None                     # type: ignore[assignment]
+
+
 def outside(name: str, index: int, length: int, write: bool = False) -> int:
     """An index past an array's end: the C runtime error for it (C18 would read or overwrite its neighbour)."""
     past = "overwrites whatever lies after it in RAM" if write else "reads whatever lies after it in RAM"
