@@ -131,3 +131,8 @@ def test_the_value_of_a_function_that_ends_without_return_is_an_error_where_it_i
     message = crash_message(process.failure, "nov.c")
     assert "line 10" in message and "f() (line 3) ended without return" in message, message
     assert "NoneType" not in message and vars(module)["TxData"][0] == 1
+
+
+def test_a_line_directive_is_refused_so_that_every_line_number_stays_the_files():
+    refused = _refusal("#line 40\n" + MAIN)
+    assert refused.line == 1 and "#line is not supported" in str(refused)

@@ -11,7 +11,7 @@ import re
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NoReturn
 
 from pcpp import preprocessor as pcpp
 from pcpp.parser import LexToken, default_lexer, lex
@@ -133,7 +133,7 @@ class _Walled(pcpp.Preprocessor):
         for name, value in locked.items():
             self.define(f"{name} {_literal(value)}")
 
-    def fail(self, line: int, message: str) -> None:
+    def fail(self, line: int, message: str) -> NoReturn:
         raise CCompileError(message, self.filename, line)
 
     def parse(self, input: str, source: str | None = None, ignore: Any = None) -> None:
@@ -161,12 +161,11 @@ class _Walled(pcpp.Preprocessor):
         except StopIteration:
             self.parser = None
             return None
-        except (IndexError, KeyError, TypeError, ValueError, AttributeError):
+        except IndexError:              # pcpp's, on a directive with nothing after it
             line, text = _unreadable_directive(self.text, getattr(self, "last_line", 1))
             self.fail(line, f"the preprocessor cannot read `{text}`: #define, #undef, #ifdef and #ifndef need a "
                             "name after them, #if and #elif an expression, #pragma what it sets (such as #ifdef DEBUG, "
                             "#if RATE == 125, #pragma config WDT = OFF)")
-            raise
 
     # -------------------------------------------------------------- pcpp's hooks
     def on_error(self, file: str, line: int, msg: str) -> None:
@@ -187,8 +186,10 @@ class _Walled(pcpp.Preprocessor):
             return True
         if name == "pragma":
             return None                 # the translator reads it
+        if name == "line":
+            self.fail(directive.lineno, "#line is not supported: the kit keeps the file's own line numbers, so that "
+                                        "every message points where you look")
         self.fail(directive.lineno, f"#{name} is not a preprocessor directive")
-        return True
 
     def on_comment(self, tok: Any) -> bool:
         return False
