@@ -136,3 +136,26 @@ def test_the_value_of_a_function_that_ends_without_return_is_an_error_where_it_i
 def test_a_line_directive_is_refused_so_that_every_line_number_stays_the_files():
     refused = _refusal("#line 40\n" + MAIN)
     assert refused.line == 1 and "#line is not supported" in str(refused)
+
+
+@pytest.mark.parametrize("spec", ["%999999999d", "%.999999999d", "%12d"])
+def test_a_sprintf_width_past_its_buffer_is_the_buffers_error_at_once(spec):
+    """A huge width used to pad for seconds until the watchdog called it an endless loop."""
+    from appsim.errors import CRuntimeError
+    module = c18.load(Path("w.c"), ('#include <stdio.h>\nchar b[8];\nvoid main(void) { sprintf(b, "' + spec
+                                    + '", (int)1); while (1); }\n').encode(), None, ())
+    with pytest.raises(CRuntimeError, match="writes at least .* bytes .* into b, which has room for 8"):
+        module.__c_main()
+
+
+def test_a_shift_past_every_width_gives_what_c18_gives_without_building_a_huge_number():
+    """`1UL << 4000000000` built a 500 MB Python integer, as a constant and at run time."""
+    from conftest import World
+    source = ('#include "CAN18XX8.h"\nunsigned long a, b, c;\nunsigned long n = 4000000000UL;\nunsigned char k = 31;\n'
+              "void main(void) { a = 1UL << 4000000000; b = 1UL << n; c = (1UL << k) | (3 << 1); "
+              "while (1) CANIsRxReady(); }\n")
+    module = c18.load(Path("s.c"), source.encode(), None, ())
+    world = World()
+    world.node("n", module.main)
+    world.run(0.001)
+    assert (module.a, module.b, module.c) == (0, 0, 0x80000006)

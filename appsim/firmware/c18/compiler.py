@@ -1147,8 +1147,10 @@ class Translator:
             if n.const is not None and x.const is not None:
                 if n.const < 0:
                     raise self.refuse(node, f"a shift by {n.const}: C leaves a negative shift undefined")
-                return self.const_int(x.const << n.const if op == "<<" else x.const >> n.const, t)
-            count = n.py if n.lo is not None and n.lo >= 0 else _rt("shift_count", [n.py])
+                shifted = x.const << min(n.const, MAX_SHIFT) if op == "<<" else x.const >> n.const
+                return self.const_int(shifted, t)           # past the width: all bits gone, as C18 computes it
+            plain = n.lo is not None and n.lo >= 0 and n.hi is not None and n.hi <= MAX_SHIFT
+            count = n.py if plain else _rt("shift_count", [n.py])
             assert x.lo is not None and x.hi is not None and n.hi is not None and n.lo is not None
             smax = min(max(n.hi, 0), 64)
             smin = max(n.lo, 0)
@@ -1851,6 +1853,9 @@ def _name(identifier: str, store: bool = False) -> ast.Name:
 
 def _call(func: ast.expr, args: list[ast.expr]) -> ast.Call:
     return ast.Call(func, args, [])
+
+
+MAX_SHIFT = 64              # a shift count past every C18 type's width: beyond it the result is the same
 
 
 def _rt(helper: str, args: list[ast.expr]) -> ast.Call:

@@ -139,9 +139,11 @@ def remainder(a: int, b: int) -> int:
 
 
 def shift_count(n: int) -> int:
+    """A shift's count: past every type's width (64) the result is the same, so no bigger (1UL << 4000000000 would
+    build a 500 MB number); a negative one is an error."""
     if n < 0:
         raise CRuntimeError(f"a shift by {n}: C leaves a negative shift count undefined")
-    return n
+    return min(n, 64)
 
 
 def copy(value: Any) -> Any:
@@ -172,14 +174,17 @@ def put_string(p: Ptr | None, codes: Sequence[int], function: str) -> None:
         raise CRuntimeError(f"{function} was given a NULL pointer where it writes a string")
     if p.rom:
         raise CRuntimeError(f"{function} writes into {p.name}, which is in program memory (rom)")
-    room = p.hi - p.i
-    if len(codes) + 1 > room:
-        raise CRuntimeError(f"{function} writes {len(codes) + 1} bytes (the NUL included) into {p.name}, which has "
-                            f"room for {room} there: C18 would overwrite whatever lies after it")
+    if len(codes) + 1 > p.hi - p.i:
+        raise _no_room(function, len(codes) + 1, p)
     mem, i, signed = p.mem, p.i, p.signed
     for k, code in enumerate(codes):
         mem[i + k] = code - 0x100 if signed and code >= 0x80 else code
     mem[i + len(codes)] = 0
+
+
+def _no_room(function: str, needed: int, p: Ptr, at_least: bool = False) -> CRuntimeError:
+    return CRuntimeError(f"{function} writes {'at least ' if at_least else ''}{needed} bytes (the NUL included) into "
+                         f"{p.name}, which has room for {p.hi - p.i} there: C18 would overwrite whatever lies after it")
 
 
 def bytes_at(p: Ptr | None, n: int, function: str) -> bytes:
@@ -244,6 +249,8 @@ def sprintf(buf: Ptr | None, fmt: Ptr | None, *args: Arg) -> int:
                 digits += chr(text[i])
                 i += 1
             width = int(digits) if digits else None
+        if width is not None and buf is not None and width + 1 > buf.hi - buf.i:   # no room whatever comes after
+            raise _no_room("sprintf", len(out) + width + 1, buf, at_least=True)     # before it pads (%999999999d)
         precision: int | None = None
         if i < n and text[i] == 0x2E:       # '.'
             i += 1
@@ -270,6 +277,8 @@ def sprintf(buf: Ptr | None, fmt: Ptr | None, *args: Arg) -> int:
             size, what = _LENGTHS[length]
             arg = next_arg(spec)
             value = _int_of(arg, size, conversion in "di", spec, what)
+            if precision is not None and buf is not None and precision + 1 > buf.hi - buf.i:
+                raise _no_room("sprintf", len(out) + precision + 1, buf, at_least=True)   # %.999999999d
             digits = _digits(value, conversion, precision)
             sign = "-" if value < 0 else "+" if "+" in flags else " " if " " in flags else ""
             prefix = ""
