@@ -159,3 +159,15 @@ def test_a_shift_past_every_width_gives_what_c18_gives_without_building_a_huge_n
     world.node("n", module.main)
     world.run(0.001)
     assert (module.a, module.b, module.c) == (0, 0, 0x80000006)
+
+
+def test_a_struct_that_points_to_its_own_kind_is_valid_c():
+    """`struct node { struct node *next; int v; }` (a linked list) was refused: "v: struct node is not a struct"."""
+    from conftest import World
+    source = ('#include "CAN18XX8.h"\nstruct node { struct node *next; int v; } a, b;\nint r;\n'
+              "void main(void) { a.next = &b; a.next->v = 4; r = b.v; while (1) CANIsRxReady(); }\n")
+    module = c18.load(Path("list.c"), source.encode(), None, ())
+    world = World()
+    world.node("n", module.main)
+    world.run(0.001)
+    assert module.r == 4

@@ -333,6 +333,16 @@ class Translator:
         self.struct_nodes[id(node)] = struct
         return struct
 
+    def completed(self, ctype: CType) -> CType:
+        """A struct as it is now: one a pointer inside its own definition named while it was incomplete
+        (`struct node { struct node *next; }`) has its members once that definition ends."""
+        if isinstance(ctype, Struct) and ctype.members is None and ctype.tag:
+            for scope in reversed(self.tags):
+                found = scope.get(ctype.tag)
+                if found is not None and found.key == ctype.key and found.members is not None:
+                    return found
+        return ctype
+
     def _new_key(self) -> int:
         self.struct_keys += 1
         return self.struct_keys
@@ -1492,6 +1502,7 @@ class Translator:
                 raise self.refuse(node, f"-> takes a pointer to a struct; this is {p.t.spelled()}")
             stype = p.t.target
             container = _rt("deref", [p.py])
+        stype = self.completed(stype)
         if not isinstance(stype, Struct) or stype.members is None:
             raise self.refuse(node, f"{node.field.name}: {stype.spelled()} is not a struct"
                                     + (" (use -> for a pointer)" if isinstance(stype, Pointer) else ""))
