@@ -171,3 +171,15 @@ def test_a_struct_that_points_to_its_own_kind_is_valid_c():
     world.node("n", module.main)
     world.run(0.001)
     assert module.r == 4
+
+
+@pytest.mark.parametrize("source, words", [
+    ("int r;\nvoid w(void) { r = sizeof(void); }\n", "void has no size"),
+    ("struct s { } x;\n", "has no members"),
+    ("void f(void x) { }\n", "a parameter cannot be void"),
+    ("#define 1 2\n", "a macro's name is an identifier"),
+    ("#define F(x, x) x\n", "names a parameter twice"),
+])
+def test_what_c18_would_not_compile_is_not_run_either(source, words):
+    """Each was accepted and ran; C18 stops at it, so a student would meet it only on the real board."""
+    assert words in str(_refusal('#include "CAN18XX8.h"\n' + source + MAIN))

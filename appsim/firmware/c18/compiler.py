@@ -241,6 +241,9 @@ class Translator:
                     raise self.refuse(param, "old-style (K&R) parameters: give each parameter its type")
                 ptype = self.type_of(param.type)
                 if isinstance(ptype, Void) and not isinstance(param.type, c_ast.PtrDecl):
+                    if getattr(param, "name", None) or len(node.args.params) > 1:
+                        raise self.refuse(param, "a parameter cannot be void: (void) alone says a function takes "
+                                                 "no arguments")
                     continue
                 if isinstance(ptype, Array):
                     ptype = Pointer(target=ptype.element)
@@ -304,6 +307,8 @@ class Translator:
             incomplete = Struct(tag=tag, key=self.struct_keys)
             self.tags[-1][tag] = incomplete
             return incomplete
+        if not node.decls:
+            raise self.refuse(node, f"struct {tag or '{ }'} has no members: C requires at least one")
         members: list[Member] = []
         for decl in node.decls:
             mtype = self.type_of(decl.type)
@@ -1086,10 +1091,10 @@ class Translator:
     def x_UnaryOp(self, node: c_ast.UnaryOp) -> E:
         op = node.op
         if op == "sizeof":
-            if isinstance(node.expr, c_ast.Typename):
-                size = self._size(self.type_of(node.expr), node)
-            else:
-                size = self._size(self.expr(node.expr).t, node)
+            measured = self.type_of(node.expr) if isinstance(node.expr, c_ast.Typename) else self.expr(node.expr).t
+            if isinstance(measured, Void):
+                raise self.refuse(node, "sizeof of void: void has no size")
+            size = self._size(measured, node)
             t = T.constant_type(size, decimal=True, unsigned=True, long=False, promote=True) or T.UINT
             return E(ast.Constant(size), T.UINT if t.size <= 2 else t, size, size, size)
         if op in ("++", "--", "p++", "p--"):

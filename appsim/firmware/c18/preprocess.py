@@ -257,12 +257,18 @@ class _Walled(pcpp.Preprocessor):
         words = [t for t in tokens if t.type not in self.t_WS]
         name = words[0].value if words else ""
         source = getattr(words[0], "source", None) if words else None
+        if words and words[0].type != self.t_ID:
+            self.fail(words[0].lineno, f"#define {name}: a macro's name is an identifier (a letter or _ first), "
+                                       "such as #define RX_Mask0 0x7FF")
         if source == self.filename:
             self.touched.add(name)
         if name in self.locked and source == self.filename:
             self.own_defines[name] = (_literal(self.locked[name]), words[0].lineno)
             return
         super().define(tokens)
+        arguments = getattr(self.macros.get(name), "arglist", None) or []
+        if len(set(arguments)) != len(arguments):
+            self.fail(words[0].lineno, f"#define {name}(...) names a parameter twice: each needs a name of its own")
         if name in self.macros and self._expanded_size(name, set()) > MAX_EXPANDED_TOKENS:
             self.fail(words[0].lineno, f"#define {name} expands to more than {MAX_EXPANDED_TOKENS:,} tokens: a macro "
                                        "bomb (a macro that uses another several times, over and over)")
