@@ -61,10 +61,11 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
         from appsim.firmware import c18
         return c18.load(path, source, defines, c_options)
     tree = _parse(path, source)
-    linecache.cache[str(path)] = (len(source), None, source.decode("utf-8-sig").splitlines(True), str(path))
+    text = source.decode("utf-8-sig")                       # _parse has read it so: it decodes
+    linecache.cache[str(path)] = (len(source), None, text.splitlines(True), str(path))
     if defines:
         _apply_defines(tree, defines, path)
-    waits_for_interrupts(tree, path, source.decode("utf-8-sig").splitlines())
+    waits_for_interrupts(tree, path, text.splitlines())
     try:
         code = compile(tree, str(path), "exec")
     except SyntaxError as error:

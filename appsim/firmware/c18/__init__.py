@@ -271,12 +271,13 @@ def _refuse_what_cannot_parse(text: str, filename: str) -> str:
     done = 0
     for match in _ASM.finditer(text):
         token = match.group(0)
-        if token[0] == "#" and not (match.group(1) or token != "#") or token[0] == "#" and text[
-                text.rfind("\n", 0, match.start()) + 1:match.start()].strip(" \t\f\v"):
-            raise CCompileError("a stray '#' in the code: # begins a preprocessor directive (#define, #include ...), "
-                                "which stands at the start of its own line", filename, line)
-        if token[0] == "#" and not match.group(1):
-            continue                    # #pragma: the translator reads it
+        if token[0] == "#":             # pcpp has read every directive but #pragma, and left its #line markers
+            before = text[text.rfind("\n", 0, match.start()) + 1:match.start()]
+            if token == "#" or before.strip(" \t\f\v"):
+                raise CCompileError("a stray '#' in the code: # begins a preprocessor directive (#define, #include "
+                                    "...), which stands at the start of its own line", filename, line)
+            if not match.group(1):
+                continue                # #pragma: the translator reads it
         if match.group(1):
             line = int(match.group(1))
         elif token == "\n":
@@ -317,10 +318,11 @@ def _parse_error(error: ParseError, filename: str, text: str) -> CCompileError:
         return CCompileError("a string with no closing quote: a \" needs its closing \" on the same line", filename,
                              line, column)
     what = what.replace("before: ", "syntax error before '") + ("'" if what.startswith("before: ") else "")
-    source_line = text.splitlines()[line - 1] if 0 < line <= len(text.splitlines()) else ""
+    lines = text.splitlines()
+    source_line = lines[line - 1] if 0 < line <= len(lines) else ""
     hint = ""
-    if "before" in what and 1 < line <= len(text.splitlines()) + 1:
-        previous = text.splitlines()[line - 2].rstrip()
+    if "before" in what and 1 < line <= len(lines) + 1:
+        previous = lines[line - 2].rstrip()
         ends = (";", "{", "}", ",", "/", "*", "(", "&&", "||", "&", "|", "+", "-", "=", "?", ":")
         control = previous.lstrip().split("(")[0].strip() in ("if", "while", "for", "switch", "else if")
         if what == "syntax error before '{'" and previous.endswith(")") and not control:

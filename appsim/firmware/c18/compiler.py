@@ -21,6 +21,7 @@ from appsim.errors import CCompileError
 from appsim.firmware.c18 import ctypes18 as T
 from appsim.firmware.c18.ctypes18 import Array, CType, Function, Int, Member, Pointer, Struct, Void
 from appsim.firmware.c18.library import BINDINGS, RESULTS
+from appsim.firmware.c18.runtime import MAX_SHIFT
 
 RT, MCU, LIB = "__rt", "__M", "__lib_"      # the runtime module, the board's MCU, the library functions
 # The library functions the translation calls by their own name: the loader knows the kit's Nop by its name (an empty
@@ -1167,7 +1168,7 @@ class Translator:
             plain = n.lo is not None and n.lo >= 0 and n.hi is not None and n.hi <= MAX_SHIFT
             count = n.py if plain else _rt("shift_count", [n.py])
             assert x.lo is not None and x.hi is not None and n.hi is not None and n.lo is not None
-            smax = min(max(n.hi, 0), 64)
+            smax = min(max(n.hi, 0), MAX_SHIFT)
             smin = max(n.lo, 0)
             if op == "<<":
                 corners = [x.lo << smin, x.lo << smax, x.hi << smin, x.hi << smax]
@@ -1869,9 +1870,6 @@ def _name(identifier: str, store: bool = False) -> ast.Name:
 
 def _call(func: ast.expr, args: list[ast.expr]) -> ast.Call:
     return ast.Call(func, args, [])
-
-
-MAX_SHIFT = 64              # a shift count past every C18 type's width: beyond it the result is the same
 
 
 def _rt(helper: str, args: list[ast.expr]) -> ast.Call:

@@ -124,6 +124,7 @@ class _Walled(pcpp.Preprocessor):
         self.expanded = 0
         self.nesting, self.line = 0, 0  # expand_macros calls within calls; the line expanded
         self.written = 0                # characters of tokens given out (the preprocessed file's size, near enough)
+        self.text, self.last_line = "", 1   # the file, and the line of the last token given out
         self.line_directive = "#line"
         self.rewrite_paths: list[tuple[str, str]] = []      # pcpp shortens paths under the working folder
         for name in ("__PCPP__", "__DATE__", "__TIME__"):
@@ -162,7 +163,7 @@ class _Walled(pcpp.Preprocessor):
             self.parser = None
             return None
         except IndexError:              # pcpp's, on a directive with nothing after it
-            line, text = _unreadable_directive(self.text, getattr(self, "last_line", 1))
+            line, text = _unreadable_directive(self.text, self.last_line)
             self.fail(line, f"the preprocessor cannot read `{text}`: #define, #undef, #ifdef and #ifndef need a "
                             "name after them, #if and #elif an expression, #pragma what it sets (such as #ifdef DEBUG, "
                             "#if RATE == 125, #pragma config WDT = OFF)")

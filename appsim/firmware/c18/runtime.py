@@ -138,12 +138,15 @@ def remainder(a: int, b: int) -> int:
     return r if a >= 0 else -r
 
 
+MAX_SHIFT = 64              # a shift count past every C18 type's width: beyond it the result is the same
+
+
 def shift_count(n: int) -> int:
-    """A shift's count: past every type's width (64) the result is the same, so no bigger (1UL << 4000000000 would
-    build a 500 MB number); a negative one is an error."""
+    """A shift's count, at most MAX_SHIFT (1UL << 4000000000 would build a 500 MB number); a negative one is an
+    error."""
     if n < 0:
         raise CRuntimeError(f"a shift by {n}: C leaves a negative shift count undefined")
-    return min(n, 64)
+    return min(n, MAX_SHIFT)
 
 
 def copy(value: Any) -> Any:

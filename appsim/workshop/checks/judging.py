@@ -61,8 +61,8 @@ def heard_nothing(trial: Trial, events: list[BusEvent]) -> bool:
 
 def nothing_to_judge(trial: Trial, what: str) -> str:
     """Why a check of what the node leaves undone fails when the node never took part: doing nothing is no merit."""
-    return (f"Nothing to judge: your node {what} (it is in {trial.mode()} mode), and a node that takes no part in the "
-            "bus does nothing right or wrong there. See the checks above: CANInitialize() puts it on the bus.")
+    return (f"Nothing to judge: your node {what} (it is in {trial.mode()} mode), and a check of what a node leaves "
+            "undone gives no point for doing nothing. See the checks above.")
 
 
 def sent_anywhere(trial: Trial) -> list[BusEvent]:
