@@ -13,6 +13,8 @@ import pytest
 from conftest import World
 
 from appsim.board.app023 import APP023
+from appsim.chip.mcu import PIC18F8680
+from appsim.chip.polling import COUNTED_TURNS
 from appsim.chip.sfr import current_mcu
 from appsim.firmware import *
 from appsim.sim import PS_PER_SECOND
@@ -32,17 +34,33 @@ print(len(w.bus.trace), hashlib.sha256(repr(w.bus.trace).encode()).hexdigest())
 """
 
 
+def _counting_reads(mcu: PIC18F8680, register: str) -> list[int]:
+    """A list whose one item counts the firmware's reads of `register` on `mcu` from now on."""
+    count = [0]
+    address = mcu.sfr_addresses[register]
+    read = mcu._readers[address]
+
+    def counted(at: int) -> int:
+        count[0] += 1
+        return read(at)
+
+    mcu._readers[address] = counted
+    return count
+
+
+LOOKS_A_SECOND = 2 * 11     # a polling loop parked 1 s is looked at after 1, 2, 4 ... 512 ms (at most at each of its
+                            # two reads), each look a turn or two, to see whether it counts after all
+
+
 def test_a_firmware_busy_waiting_one_second_for_a_frame_runs_its_loop_a_handful_of_times(world):
     """The frame comes 1 s (simulated) later; the polling loop sees nothing new until then, so it parks."""
-    turns = []
+    received = []
 
     def waiter():
         CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
-        count = 0
         while not CANIsRxReady():
-            count += 1
-        turns.append(count)
-        turns.append(CANReceiveMessage())
+            pass
+        received.append(CANReceiveMessage())
 
     def late_sender():
         CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
@@ -52,43 +70,44 @@ def test_a_firmware_busy_waiting_one_second_for_a_frame_runs_its_loop_a_handful_
         Delay10KTCYx(250)                           # 4 x 250 ms
         CANSendMessage(0x100, [1, 2, 3], 3, CAN_TX_STD_FRAME)
 
-    world.node("waiter", waiter)
+    reads = _counting_reads(world.node("waiter", waiter), "RXB0CON")
     world.node("sender", late_sender)
     started = time.perf_counter()
     world.run(1.1)
     wall = time.perf_counter() - started
     received_at = world.bus.frames()[0].end_ps / PS_PER_SECOND
     assert 1.0 < received_at < 1.001
-    count, message = turns
+    (message,) = received
     assert (message.id, bytes(message.data[:message.length])) == (0x100, b"\x01\x02\x03")
-    assert count < 10, f"the polling loop ran {count} times: it should park until the frame arrives"
-    print(f"1.1 s simulated with a 1 s busy-wait: {wall * 1e3:.1f} ms wall, {count} loop turns")
+    assert reads[0] < 10 + 2 * LOOKS_A_SECOND, f"the polling loop ran {reads[0]} times: it should park until the frame"
+    print(f"1.1 s simulated with a 1 s busy-wait: {wall * 1e3:.1f} ms wall, {reads[0]} loop turns")
 
 
 def test_a_parked_loop_sleeps_through_changes_it_does_not_read(world):
     """Timer1 overflows 150 times a second and sets TMR1IF in PIR1; a loop polling only CANIsRxReady()
     reads RXB0CON and RXB1CON, which stay as they were, so it stays parked until the frame comes."""
-    turns, overflows = [], []
+    overflows = []
 
     def waiter():
         CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
         OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_1 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF)
-        count = 0
         while not CANIsRxReady():
-            count += 1
-        turns.append(count)
+            pass
         overflows.append(PIR1bits.TMR1IF)
+
+    board = APP023(world.bus, "waiter")
+    reads = _counting_reads(board.mcu, "RXB0CON")
+    board.run(waiter)
 
     def sender():
         CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
         Delay10KTCYx(250)                           # 250 ms: about 38 Timer1 overflows at 1:1
         CANSendMessage(0x100, [1], 1, CAN_TX_STD_FRAME)
 
-    APP023(world.bus, "waiter").run(waiter)
     APP023(world.bus, "sender").run(sender)
     world.run(0.3)
     assert overflows == [1], "Timer1 did overflow while the loop waited"
-    assert turns and turns[0] < 10, f"the loop turned {turns} times: overflows it never reads woke it"
+    assert reads[0] < 10 + 2 * LOOKS_A_SECOND, f"the loop turned {reads[0]} times: overflows it never reads woke it"
 
 
 def timeout_loop(tries: int, seen: list[tuple[int, int]]):
@@ -162,9 +181,11 @@ def test_a_loop_that_reads_timer1_for_its_timeout_is_not_parked_its_timeout_come
     assert 0.040 < sent.start_ps / PS_PER_SECOND < 0.0405
 
 
-def test_a_pure_spin_with_a_count_is_still_parked(world):
-    """No delay in the loop: it reads, counts and reads again, with nothing changed, so it parks until the frame
-    (its count says a handful of turns, not the 100,000 the chip would make in 25 ms)."""
+def test_a_spin_with_a_count_turns_as_a_counting_loop_then_parks_until_the_next_look(world):
+    """No delay in the loop: it reads, counts and reads again. Nothing changed on the board, but its count did: it may
+    be a timeout, so it is no polling loop to park for good. Found counting at the first look (after 1 ms), it turns
+    COUNTED_TURNS reads at each look, the looks backing off (1, 2, 4 ... ms), and the frame at 25 ms ends it: a few
+    thousand turns, not the 100,000 the chip would make."""
     turns = []
 
     def spinner():
@@ -179,10 +200,13 @@ def test_a_pure_spin_with_a_count_is_still_parked(world):
         Delay10KTCYx(25)
         CANSendMessage(0x100, [1], 1, CAN_TX_STD_FRAME)
 
-    world.node("spinner", spinner)
+    board = world.node("spinner", spinner)
     world.node("sender", sender)
     world.run(0.1)
-    assert turns and turns[0] < 10, turns
+    (frame,) = world.bus.frames()
+    (count,) = turns
+    on_the_chip = frame.end_ps // (2 * board.access_ps)
+    assert COUNTED_TURNS // 2 <= count <= LOOKS_A_SECOND * COUNTED_TURNS // 2 < on_the_chip, (count, on_the_chip)
 
 
 def test_seven_node_trace_is_identical_in_separate_processes_even_under_load():

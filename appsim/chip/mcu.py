@@ -19,6 +19,14 @@ from appsim.chip.clock import FOSC_HZ
 from appsim.chip.ecan import registers as ecan_registers
 from appsim.chip.ecan.controller import ECAN
 from appsim.chip.interrupts import INTERRUPT_LATENCY_CYCLES, RETFIE_CYCLES, Interrupts
+from appsim.chip.polling import (
+    POLLING_SITES,
+    PROBE_PASSES,
+    PollingLoop,
+    firmware_entry,
+    firmware_site,
+    forget_firmware_code,
+)
 from appsim.chip.ports import PortJ
 from appsim.chip.sfr import (
     ADC_REGISTERS,
@@ -30,15 +38,12 @@ from appsim.chip.sfr import (
     VECTOR_NAMES,
     GLCDPort,
     SFRNames,
-    firmware_entry,
-    firmware_site,
-    forget_firmware_code,
     missing_routine,
 )
 from appsim.chip.timer1 import Timer1
 from appsim.chip.usart import USART
 from appsim.errors import FirmwareHung, NoInterruptRoutine
-from appsim.sim import PS_PER_SECOND, Process, Simulator
+from appsim.sim import PS_PER_SECOND, Process, Simulator, Timer
 
 SFR_ACCESS_CYCLES = 2           # a C statement touching an SFR: MOVFF / MOVF + MOVWF, with banking
 REENTRIES_AT_ONCE = 10_000      # a routine entered again at once this often in a row never clears its source
@@ -55,8 +60,9 @@ class Peripheral(Protocol):
 
 
 READ_AHEAD_MAX_PS = 1 << 62           # a horizon with no event ahead
-POLLING_SITES = 1024                  # (register, call site) a polling loop's reads are told apart by, at most: reads
-                                      # from further sites (a deep recursion's) never park, they only cost time
+PROBE_FIRST_PS = PS_PER_SECOND // 1000    # a loop parked this long is woken once, nothing changed, to see if it counts;
+PROBE_LAST_PS = PS_PER_SECOND             # each time it does not, the next look there comes twice as late, up to this
+PROBE_COUNTING_PS = 8 * PROBE_FIRST_PS     # and one that did comes again after this: a loop that counts turns on
 
 
 def _reads_zero(address: int) -> int:
@@ -68,7 +74,8 @@ class ReadAhead(NamedTuple):
     """See `PIC18F8680.read_ahead`: the time the firmware may spend, whether `sites` (address, call site) are the
     polling loop's at this change, the registers it may read without asking (their addresses; their values, and
     whether each was read since the last change, both as bytes), those sites, and what the registers read after a
-    write of one of `written` (its address, and their values then, as bytes), where the board can tell."""
+    write of one of `written` (its address, and their values then, as bytes), where the board can tell; and whether
+    the read it comes after ended a park a probe woke (`PIC18F8680._park_polling`)."""
 
     budget_ps: int
     current: bool
@@ -77,6 +84,7 @@ class ReadAhead(NamedTuple):
     seen: bytes
     sites: list[tuple[int, int]]
     after_writes: list[tuple[int, bytes]]
+    probed: bool
 
 
 class PIC18F8680(SFRNames):
@@ -105,13 +113,22 @@ class PIC18F8680(SFRNames):
         self.map(self.ecan, ((r.name, r.address) for r in ecan_registers.REGISTERS))
         self.version = 0
         self._seen: dict[int, int] = {}                 # address -> `version` when the firmware last read it
-        # What a polling loop reads again at `_polled_version`: values, (address, firmware location), and
-        # whether they tell all (no register whose read has a side effect).
+        # What a polling loop reads again at `_polled_version`: values, where from (`loop`), and whether they tell all
+        # (no register whose read has a side effect).
         self._polled_version = -1
         self._polled: dict[int, int] = {}
-        self._polled_sites: set[tuple[int, object]] = set()
+        self.loop = PollingLoop()
         self._polled_pure = True
         self._parked_on: dict[int, int] | None = None       # what a parked loop read (None: wake on any change)
+        # The probe that looks whether a parked loop counts (see `_park_polling`).
+        self._parked_at: tuple[int, int] | None = None     # where the loop parked: (address, site)
+        self._parked_since = 0
+        self._probe_event: Timer | None = None
+        self._probe_after: dict[tuple[int, int], int] = {}
+        self._probing = False
+        self._reads_again = 0               # reads again so far, and where a probe looked and how many there were then
+        self._looked: tuple[tuple[int, int], int] | None = None
+        self.probed_read = False            # the read just done ended a park a probe woke (the sandbox's loop judges)
         self.time_varying: set[int] = set()
         # The registers a read-ahead offered last, and how each is read (see `read_ahead`).
         self._offered: tuple[int, ...] | None = None
@@ -145,7 +162,7 @@ class PIC18F8680(SFRNames):
             self._readers[address] = device.read
 
     # -------------------------------------------------------------- firmware access
-    def read(self, address: int, site: object = None) -> int:
+    def read(self, address: int, site: int | None = None) -> int:
         """The register's value; `site` names the firmware's call site when it runs elsewhere (a sandbox).
 
         An interrupt requested meanwhile (while the firmware handed over, or while its polling loop was parked) is
@@ -190,25 +207,86 @@ class PIC18F8680(SFRNames):
             values.append(readers.get(address, _reads_zero)(address))
         return values
 
-    def _read_again(self, process: Process, address: int, site: object) -> None:
-        """A register read again with nothing changed since: from the same place in the firmware, that
-        is a polling loop, parked until a change that it would see. A loop that reads a register time changes (Timer1)
-        sees time pass by itself, as one that waits (`wait_cycles`): that read is a change, the loop never parks."""
+    def _read_again(self, process: Process, address: int, site: int | None) -> None:
+        """A register read again with nothing changed since: from the same place in the firmware, with the firmware's
+        own variables as they were (`PollingLoop`), that is a polling loop, parked until a change that it would see. A
+        loop that counts its turns (a timeout, `TxData[k] = ADRESH` for k = 0..4) turns on as on the chip. A loop that
+        reads a register time changes (Timer1) sees time pass by itself, as one that waits (`wait_cycles`): that read
+        is a change, the loop never parks. A `site` given comes from a sandbox, whose firmware judges counting there."""
         if address in self.time_varying:
             self.version += 1
             return
+        self._reads_again += 1
+        loop = self.loop
         if self._polled_version != self.version:
             self._polled_version = self.version
-            self._polled, self._polled_sites, self._polled_pure = {}, set(), True
+            self._polled, self._polled_pure = {}, True
+            loop.changed()
+        here = site is None
+        place = firmware_site(3) if site is None else site         # from read's caller
         if address in self.read_side_effects:
-            self._polled_pure = False
-        site = (address, firmware_site(3) if site is None else site)        # from read's caller
-        if site not in self._polled_sites:
-            if len(self._polled_sites) < POLLING_SITES:
-                self._polled_sites.add(site)
+            self._polled_pure = here = False    # a read that changes the board: its loop is judged by place alone
+        sites, key = loop.sites, (address, place)
+        if key not in sites:                    # PollingLoop.new_site, here: every polling loop's path
+            if len(sites) < POLLING_SITES:
+                sites.add(key)
+            loop.probe = None
+            return
+        if loop.from_known_place(address, place, judged=here) is not None:
             return
         self._parked_on = self._polled if self._polled_pure else None
+        self._park_polling(process, key, here)
+
+    def _park_polling(self, process: Process, parked_at: tuple[int, int], here: bool) -> None:
+        """Park a polling loop. One that stays parked PROBE_FIRST_PS is woken once with nothing changed that it reads
+        (`_probe`): the loop it is in may count after all, which its variables at its next read again tell
+        (`PollingLoop.probed`, here or in the sandbox). Each look at one place comes twice as late as the one before,
+        up to PROBE_LAST_PS; unless the loop turned on after the last look there (it counts, and has used its turns):
+        then the next comes after PROBE_COUNTING_PS. A loop that counts (a timeout) so turns COUNTED_TURNS reads per
+        change on the board, and as many every PROBE_COUNTING_PS at least: a free-running counter costs about 128,000
+        reads a simulated second, not the chip's millions."""
+        if self._looked is not None:
+            looked_at, reads = self._looked
+            self._looked = None
+            if self._reads_again - reads > PROBE_PASSES:
+                self._probe_after[looked_at] = PROBE_COUNTING_PS
+        self._parked_at, self._parked_since = parked_at, process.local_time
+        due = process.local_time + self._probe_after.get(parked_at, PROBE_FIRST_PS)
+        event = self._probe_event
+        if event is None or event.time > due:       # one look ahead at a time; `_probe` puts it off if it may
+            if event is not None:
+                event.cancel()
+            self._probe_event = self.sim.call_at(due, self._probe)
         process.park()
+        self._parked_at = None
+        if self._probing:
+            self._probing = False
+            if self.version == self._polled_version:        # nothing it reads changed since the probe woke it
+                self.loop.probed(*parked_at, judged=here)
+                self.probed_read = not here
+
+    def _probe(self) -> None:
+        """Wake the parked polling loop to look whether it counts, if it is time: changes it does not read (Timer1
+        overflowing) may have come meanwhile, and it reads as it did, so its places still hold."""
+        self._probe_event = None
+        parked_at, process, parked_on = self._parked_at, self.process, self._parked_on
+        if parked_at is None or process is None or not process.parked or parked_on is None:
+            return
+        after = self._probe_after.get(parked_at, PROBE_FIRST_PS)
+        due = self._parked_since + after
+        if due > self.sim.now:
+            self._probe_event = self.sim.call_at(due, self._probe)
+            return
+        if len(self._probe_after) >= POLLING_SITES:
+            self._probe_after.clear()
+        self._probe_after[parked_at] = min(2 * after, PROBE_LAST_PS)
+        if self.version != self._polled_version:
+            self._polled_version = version = self.version
+            for address in parked_on:
+                self._seen[address] = version
+        self._probing = True
+        self._looked = parked_at, self._reads_again
+        process.wake()
 
     def read_ahead(self, addresses: tuple[int, ...], written: Iterable[int] = ()) -> ReadAhead:
         """What firmware that runs elsewhere (the grader's sandbox) may read without asking, right now.
@@ -236,6 +314,7 @@ class PIC18F8680(SFRNames):
         seen, version = self._seen, self.version
         readers = self._offered_readers
         current = self._polled_version == version
+        probed, self.probed_read = self.probed_read, False
         values = [read(a) for a, read in readers]
         after_writes = []
         for address in written:
@@ -245,8 +324,7 @@ class PIC18F8680(SFRNames):
                     self._offered_addresses, values, strict=True)])))
         return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, self._offered_addresses,
                          bytes(values), bytes([seen.get(a) == version for a, _ in readers]),
-                         [(a, site) for a, site in self._polled_sites if isinstance(site, int)] if current else [],
-                         after_writes)
+                         list(self.loop.sites) if current else [], after_writes, probed)
 
     def write(self, address: int, value: int) -> None:
         """Write the register; an interrupt this write (or an event while it waited) makes pending is taken after it."""
@@ -393,6 +471,7 @@ class PIC18F8680(SFRNames):
         if self.process is not None and not self.process.dead:
             self.process.stop()
         forget_firmware_code()          # new firmware brings new code objects (a grader loads thousands)
+        self.loop, self._probe_after = PollingLoop(), {}
         self.interrupts.reset(routines or {})
         context = contextvars.Context()
         context.run(RUNNING_MCU.set, self)                  # what `current_mcu()` gives its firmware

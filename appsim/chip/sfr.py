@@ -6,10 +6,8 @@ firmware library, which runs in the grader's sandbox without the simulator.
 from __future__ import annotations
 
 import abc
-import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from contextvars import ContextVar
-from types import CodeType, FrameType
 from typing import Any, Protocol
 
 from appsim.chip.ecan import registers as ecan_registers
@@ -107,7 +105,7 @@ class SFRNames(abc.ABC):
     sfr_addresses: dict[str, int]
 
     @abc.abstractmethod
-    def read(self, address: int, site: object = None) -> int: ...
+    def read(self, address: int, site: int | None = None) -> int: ...
     @abc.abstractmethod
     def write(self, address: int, value: int) -> None: ...
 
@@ -147,7 +145,7 @@ class FirmwareMCU(Protocol):
     sfr_addresses: dict[str, int]
     glcd: GLCDPort | None
 
-    def read(self, address: int, site: object = None) -> int: ...
+    def read(self, address: int, site: int | None = None) -> int: ...
     def write(self, address: int, value: int) -> None: ...
     def read_each(self, addresses: Sequence[int]) -> list[int]: ...
     def spend_cycles(self, cycles: int) -> None: ...
@@ -182,46 +180,3 @@ def current_mcu() -> FirmwareMCU:
             "this is firmware: it runs on a simulated board, from main(). "
             "Start it with a board's run(main) (or `appsim board FILE`), not by calling it directly.")
     return mcu
-
-
-# id(code object) -> FIRMWARE, KIT or ENTRY, each code object kept alive in `_KEPT` so its id stays its own. Keyed by
-# id: a code object's own hash is recomputed from its whole content on every call.
-FIRMWARE, KIT, ENTRY = 0, 1, 2
-_KINDS: dict[int, int] = {}
-_KEPT: list[CodeType] = []
-_ENTRIES: set[CodeType] = set()
-
-
-def firmware_entry(function: Callable[..., object]) -> None:
-    """Mark `function` as what calls a firmware's main(): the walk of `firmware_site` stops there."""
-    _ENTRIES.add(function.__code__)
-    forget_firmware_code()
-
-
-def firmware_site(depth: int = 2) -> int:
-    """Where in the firmware (outside this package) the current register access comes from, as a number: its call
-    stack up to its main(), each firmware frame's code object and instruction offset, hashed. A polling loop reads from
-    one place. The walk starts `depth` frames up (2: the caller of the function that calls this, the register read
-    itself): each frame it looks at that had no frame object is given one, which costs more than the rest of it."""
-    frame: FrameType | None = sys._getframe(depth)
-    kinds = _KINDS
-    site = 0
-    while frame is not None:
-        code = frame.f_code
-        kind = kinds.get(id(code))
-        if kind is None:
-            kind = kinds[id(code)] = (ENTRY if code in _ENTRIES else
-                                      KIT if frame.f_globals.get("__name__", "").startswith("appsim.") else FIRMWARE)
-            _KEPT.append(code)
-        if kind == FIRMWARE:
-            site = hash((site, id(code), frame.f_lasti))
-        elif kind == ENTRY:
-            break
-        frame = frame.f_back
-    return site
-
-
-def forget_firmware_code() -> None:
-    """Empty the cache behind `firmware_site` (new firmware brings new code objects)."""
-    _KINDS.clear()
-    _KEPT.clear()

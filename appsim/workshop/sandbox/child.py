@@ -16,15 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from appsim import errors
-from appsim.chip.sfr import (
-    ADDRESSES,
-    HIGH_VECTOR,
-    RUNNING_MCU,
-    SFRNames,
-    firmware_entry,
-    firmware_site,
-    missing_routine,
-)
+from appsim.chip.polling import PollingLoop, firmware_entry, firmware_site
+from appsim.chip.sfr import ADDRESSES, HIGH_VECTOR, RUNNING_MCU, SFRNames, missing_routine
 from appsim.errors import FirmwareError, NoInterruptRoutine
 from appsim.firmware.identity import identity_of
 from appsim.firmware.interrupts import routines
@@ -63,22 +56,28 @@ class RemoteMCU(SFRNames):
         self._after: dict[int, dict[int, int]] = {}     # written address -> the read-ahead after that write
         self._left_ps = 0                               # what the firmware may still spend before it runs out
         self._seen: set[int] = set()                    # read since the last change (a read again may be polling)
-        self._sites: set[tuple[int, int]] = set()       # (address, site) of the polling loop at this change
+        self._loop = PollingLoop()                      # its sites: the board's, if current (PIC18F8680.loop)
         self._sites_current = False
 
-    def read(self, address: int, site: object = None) -> int:
+    def read(self, address: int, site: int | None = None) -> int:
         ahead = self._ahead
-        if ahead is not None and address in ahead and self._left_ps >= self.access_ps:
+        place = None
+        if ahead is not None and address in ahead:
             if address not in self._seen:       # the first read since the change: where it comes from does not matter
-                self._seen.add(address)
-                return self._served(address, 0, ahead[address])
-            place = firmware_site()
-            if not self._sites_current:         # PIC18F8680._read_again: the first read again since a change
-                self._sites, self._sites_current = set(), True
-            if (address, place) not in self._sites:
-                self._sites.add((address, place))
-                return self._served(address, place, ahead[address])
-        else:
+                if self._left_ps >= self.access_ps:
+                    self._seen.add(address)
+                    return self._served(address, 0, ahead[address])
+            else:                               # read again: PIC18F8680._read_again's rule, judged here
+                if not self._sites_current:
+                    self._loop.changed()
+                    self._sites_current = True
+                place = firmware_site()
+                turned_on = self._loop.goes_on(address, place)
+                if turned_on is not None:       # it turns on: a read that cannot park, at a site new to the board
+                    if self._left_ps >= self.access_ps:
+                        return self._served(address, turned_on, ahead[address])
+                    place = turned_on
+        if place is None:
             place = firmware_site()
         self._ahead = None                      # a read that would park (or that the read-ahead does not cover)
         self._pending += wire.READ_ITEM.pack(wire.READ, _address(address), place)
@@ -89,13 +88,15 @@ class RemoteMCU(SFRNames):
             reply = wire.LENGTH.pack(0) + self.answer()
             if reply[4:5] != wire.VALUE:
                 raise RuntimeError("the grader answered a register read with something else")
-        if len(reply) > 6:
-            self._read_ahead(reply[6:])
+        if len(reply) > 6 and self._read_ahead(reply[6:]):
+            self._loop.probed(address, place)   # it parked, and was woken to see whether it counts
         return reply[5]
 
-    def _read_ahead(self, data: bytes) -> None:
-        self._left_ps, current, self._ahead, self._seen, sites, self._after = wire.decode_read_ahead(data)
-        self._sites, self._sites_current = sites, current
+    def _read_ahead(self, data: bytes) -> bool:
+        """Take a read-ahead; whether the read it answers ended a park that a probe woke."""
+        self._left_ps, current, self._ahead, self._seen, sites, self._after, probed = wire.decode_read_ahead(data)
+        self._loop.sites, self._sites_current = sites, current
+        return probed
 
     def _served(self, address: int, place: int, value: int) -> int:
         self._left_ps -= self.access_ps

@@ -1,0 +1,259 @@
+"""How a polling loop, parked until the board changes, is told from a loop that counts its turns, which runs on as on
+the chip: the places the firmware read a register again from since the last change, and its variables there.
+
+The rule runs where the firmware runs: on the board's MCU (`PIC18F8680._read_again`), or in the grader's sandbox.
+"""
+from __future__ import annotations
+
+import opcode
+import sys
+from collections.abc import Callable
+from types import CodeType, FrameType, FunctionType
+from typing import Any
+
+POLLING_SITES = 1024        # (register, call site) a polling loop's reads are told apart by, at most, per change on the
+                            # board: reads from further sites (a deep recursion's) never park
+COUNTED_TURNS = 1024        # reads again in a new state (a turn of CANIsRxReady() makes two) that loops that count may
+                            # make per change on the board, or per probe, as on the chip; then they park as polling does
+PROBE_PASSES = 64           # reads again elsewhere a probed loop may make on its way back to where it was woken
+FROZEN_DEPTH = 3            # lists in lists (a queue of frames, an array of structs) are compared this deep
+FROZEN_ITEMS = 4096         # items of a list compared one by one, at most; a longer one by its identity and length
+
+
+# id(code object) -> FIRMWARE, KIT or ENTRY; id(code object) -> the names of data it reads from its module; id(module
+# globals) -> the names its functions assign. Each code object and module kept alive in `_KEPT` so its id stays its
+# own. Keyed by id: a code object's own hash is recomputed from its whole content on every call.
+FIRMWARE, KIT, ENTRY = 0, 1, 2
+_KINDS: dict[int, int] = {}
+_DATA_GLOBALS: dict[int, tuple[str, ...]] = {}
+_ASSIGNED: dict[int, frozenset[str]] = {}
+_KEPT: list[object] = []
+_ENTRIES: set[CodeType] = set()
+
+
+def firmware_entry(function: Callable[..., object]) -> None:
+    """Mark `function` as what calls a firmware's main(): the walk of `firmware_site` stops there."""
+    _ENTRIES.add(function.__code__)
+    forget_firmware_code()
+
+
+def firmware_site(depth: int = 2, *, variables: bool = False) -> int:
+    """Where in the firmware (outside this package) the current register access comes from, as a number: its call
+    stack up to its main(), each firmware frame's code object and instruction offset, hashed. A polling loop reads from
+    one place. With `variables`, what the firmware holds instead of where it is: each frame's variables. The walk starts
+    `depth` frames up (2: the caller of the function that calls this, the register read itself): each frame it looks at
+    that had no frame object is given one, which costs more than the rest of it."""
+    frame: FrameType | None = sys._getframe(depth)
+    kinds = _KINDS
+    site = 0
+    while frame is not None:
+        code = frame.f_code
+        kind = kinds.get(id(code))
+        if kind is None:
+            kind = kinds[id(code)] = (ENTRY if code in _ENTRIES else
+                                      KIT if frame.f_globals.get("__name__", "").startswith("appsim.") else FIRMWARE)
+            _KEPT.append(code)
+        if kind == FIRMWARE:
+            site = hash((site, id(code), frame_variables(frame) if variables else frame.f_lasti))
+        elif kind == ENTRY:
+            break
+        frame = frame.f_back
+    return site
+
+
+def forget_firmware_code() -> None:
+    """Empty the caches behind `firmware_site` (new firmware brings new code objects)."""
+    _KINDS.clear()
+    _DATA_GLOBALS.clear()
+    _ASSIGNED.clear()
+    _KEPT.clear()
+
+
+class PollingLoop:
+    """The places a loop read registers again from, with nothing changed on the board since the firmware last read
+    them: one read again from a place it read again from before is a polling loop's, to park. Unless the loop counts:
+    a loop seen with new variables at each turn (`for (t = 0; t < 1000; t++) if (RXB0CONbits.RXFUL) break;`) is let
+    turn on, COUNTED_TURNS reads at most per change; with its variables as they were, it parks.
+
+    Comparing variables costs more than a register read, so it is done only where a loop was seen counting. Whether a
+    loop that stays parked counts after all is found by a probe: the board wakes it with nothing changed (`probed`),
+    and its variables when it is back at that read tell; a loop that leaves instead (its count ran out) counted."""
+
+    def __init__(self) -> None:
+        self.sites: set[tuple[int, int]] = set()        # (address, site) read again from since the last change
+        self.counting: set[tuple[int, int]] = set()     # (address, site) where a loop was seen counting
+        self.counted = 0                                 # reads again of counting loops since the last change
+        self.probe: _Probe | None = None                # a look in progress (`probed`); a new place ends it
+
+    def changed(self) -> None:
+        """The board changed: every place is new again."""
+        self.sites, self.counted, self.probe = set(), 0, None
+
+    def new_site(self, site: tuple[int, int]) -> bool:
+        """Whether the loop has not read from `site` (address, place) since the last change; it has now, if there is
+        room (a loop that reads from more places never parks). A look in progress ends there: the loop left the way
+        it polled (in the sandbox, a new place is also how a counting loop's read comes)."""
+        sites = self.sites
+        if site in sites:
+            return False
+        if len(sites) < POLLING_SITES:
+            sites.add(site)
+        self.probe = None
+        return True
+
+    def goes_on(self, address: int, place: int, *, judged: bool = True) -> int | None:
+        """A read again of `address` from `place` (`firmware_site`) with nothing changed on the board since: the site
+        the read counts as if the loop turns on (a place new since the change; or a counting loop's place, with its
+        variables new there), None if it is a polling loop to park. Not `judged`: the firmware runs elsewhere (the
+        sandbox), which judges its variables itself and names a counting loop's read by a site new here."""
+        if self.new_site((address, place)):
+            return place
+        return self.from_known_place(address, place, judged=judged)
+
+    def from_known_place(self, address: int, place: int, *, judged: bool = True) -> int | None:
+        """`goes_on` for a read again from a place the loop read again from since the change (the board calls this
+        itself, after its own look at `sites`: it is every polling loop's path)."""
+        if self.probe is None and (not judged or (address, place) not in self.counting):
+            return None                         # a polling loop, as it mostly is
+        here = (address, place)
+        probe = self.probe
+        if probe is not None:
+            if here != probe.at and probe.passes:   # on to where the probe woke it: it parks there, if it parks
+                probe.passes -= 1
+                probe.passed.add(here)
+                return place
+            self.probe = None
+            if judged and here == probe.at:
+                if firmware_site(variables=True) == probe.variables:
+                    self.counting.discard(here)     # it polls there after all
+                    return None
+                self._count(probe.passed | {here})  # every place of the loop counts
+        return self._turn(address, place) if judged and here in self.counting else None
+
+    def _count(self, places: set[tuple[int, int]]) -> None:
+        if len(self.counting) + len(places) > POLLING_SITES:
+            self.counting.clear()
+        self.counting |= places
+
+    def _turn(self, address: int, place: int) -> int | None:
+        """A counting loop's read again: the site it counts as (its place and variables), unless it was there in that
+        state since the change (then it polls after all) or has used its turns."""
+        if self.counted >= COUNTED_TURNS:
+            return None
+        site = hash((place, firmware_site(variables=True)))
+        if not self.new_site((address, site)):
+            return None
+        self.counted += 1
+        return site
+
+    def probed(self, address: int, place: int, *, judged: bool = True) -> None:
+        """The loop parked at its read of `address` from `place` was woken with nothing changed, to see whether it
+        counts: it goes on to that place again (PROBE_PASSES reads again elsewhere at most), and its variables there
+        are compared with those now. Until then that place counts: a loop that leaves it (its count ran out there)
+        did. A loop that counts has turns again."""
+        self.probe = _Probe((address, place), firmware_site(variables=True) if judged else 0)
+        self.counted = 0
+        if judged:
+            self._count({(address, place)})
+
+
+class _Probe:
+    """Where a probe woke a parked loop (address, place), its variables then, and the places it passed since."""
+
+    __slots__ = ("at", "passed", "passes", "variables")
+
+    def __init__(self, at: tuple[int, int], variables: int):
+        self.at, self.variables = at, variables
+        self.passed: set[tuple[int, int]] = set()
+        self.passes = PROBE_PASSES
+
+
+def frame_variables(frame: FrameType) -> tuple[object, ...]:
+    """A firmware frame's variables, as values equal only when nothing in them changed: its locals, and the module
+    globals its code names that can change."""
+    code, module = frame.f_code, frame.f_globals
+    names = _DATA_GLOBALS.get(id(code))
+    if names is None:
+        names = _data_globals(module, code)
+    values = (*frame.f_locals.values(), *map(module.get, names))
+    if set(map(type, values)) <= _PLAIN:
+        return values
+    return tuple([value if type(value) in _PLAIN else _frozen(value) for value in values])
+
+
+_PLAIN = frozenset({int, bool, str, bytes, float, type(None)})
+_STORES_GLOBAL = frozenset({opcode.opmap["STORE_GLOBAL"], opcode.opmap["DELETE_GLOBAL"]})
+_EXTENDED_ARG = opcode.opmap["EXTENDED_ARG"]
+
+
+def _data_globals(module: dict[str, Any], code: CodeType) -> tuple[str, ...]:
+    """The module globals `code` names that can change: one a function of the module assigns (a global counter), or a
+    list, an array it fills."""
+    assigned = _assigned_globals(module)
+    names = _DATA_GLOBALS[id(code)] = tuple(
+        name for name in code.co_names if name in module
+        and (name in assigned or isinstance(module[name], (list, bytearray, dict, set))))
+    _KEPT.append(code)
+    return names
+
+
+def _assigned_globals(module: dict[str, Any]) -> frozenset[str]:
+    """The global names the module's functions assign (`global count; count += 1`), once per module."""
+    found = _ASSIGNED.get(id(module))
+    if found is None:
+        names: set[str] = set()
+        codes = [value.__code__ for value in module.values()
+                 if isinstance(value, FunctionType) and value.__globals__ is module]
+        while codes:
+            each = codes.pop()
+            names.update(_stored_globals(each))
+            codes += [const for const in each.co_consts if isinstance(const, CodeType)]
+        found = _ASSIGNED[id(module)] = frozenset(names)
+        _KEPT.append(module)
+    return found
+
+
+def _stored_globals(code: CodeType) -> list[str]:
+    """The globals `code` stores or deletes, read from its bytecode (2-byte units: opcode, argument; dis would take
+    20 times as long, and a classroom loads a few hundred firmware modules)."""
+    raw = code.co_code
+    if not _STORES_GLOBAL & set(raw[::2]):
+        return []
+    names, extended = [], 0
+    for k in range(0, len(raw), 2):
+        opcode, argument = raw[k], raw[k + 1] | extended
+        extended = argument << 8 if opcode == _EXTENDED_ARG else 0
+        if opcode in _STORES_GLOBAL:
+            names.append(code.co_names[argument])
+    return names
+
+
+def _frozen(value: object, depth: int = 0) -> object:
+    """`value` as something hashable that changes when its contents do: a list (a C array, struct or variable whose
+    address is taken, a queue) by its items, a C pointer by where it points and what is there."""
+    if type(value) in _PLAIN:
+        return value
+    if isinstance(value, int):          # an IntEnum's member, a flag
+        return int(value)
+    if isinstance(value, (list, tuple)):
+        if len(value) > FROZEN_ITEMS:
+            return id(value), len(value)
+        items = tuple(value)
+        try:
+            hash(items)                 # ints, bytes, tuples of them (a CANMessage): as they are
+            return items
+        except TypeError:
+            pass
+        if depth < FROZEN_DEPTH:
+            return tuple([item if type(item) in _PLAIN else _frozen(item, depth + 1) for item in items])
+        return id(value), len(items)
+    if isinstance(value, bytearray):
+        return bytes(value)
+    slots = getattr(type(value), "__slots__", None)
+    if slots and depth < FROZEN_DEPTH:
+        return tuple([_frozen(getattr(value, name, None), depth + 1) for name in slots])
+    try:
+        hash(value)
+    except Exception:                   # a firmware's own __hash__ may raise anything
+        return id(value)
+    return value

@@ -1,0 +1,200 @@
+"""A loop that reads one register again and again while it counts (a timeout, a copy into an array) is no polling loop
+to park: it turns on, as on the chip, until its count ends it; on a board, in `appsim check` and in the sandbox. One the
+kit parked is looked at again with nothing changed (after 1, 2, 4 ... ms): its variables tell whether it counts."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from test_sandbox_interrupts import both_ways
+
+from appsim.board.app023 import APP023
+from appsim.firmware.loader import load_firmware
+from appsim.sim import PS_PER_SECOND
+from appsim.workshop.checks import check
+from appsim.workshop.checks import ex2 as ex2_check
+from appsim.workshop.course import SOLUTIONS
+from appsim.workshop.grading.worker import grade_exercise
+from appsim.workshop.sandbox.children import Limits, Sandbox
+from appsim.workshop.sandbox.isolation import isolation
+
+SEED = 7
+
+COPY_FIVE_TIMES = """from appsim.firmware import *
+
+TxData = [0] * 5
+
+
+def main():
+    GLCD_Initial()
+    k = 0
+    while k < 5:                    # the same register five times: the board does not change, k does
+        TxData[k] = SFR.ADRESH
+        k += 1
+    setcurGLCD(1, 1)
+    putrsGLCD("AFTER")
+    while True:
+        CANIsRxReady()
+"""
+
+TIMEOUT_C = """#include <p18f8680.h>
+#include "CAN18XX8.h"
+#include "APP023_GLCD.h"
+unsigned int turns;
+void main(void)
+{
+    unsigned int t;
+    GLCD_Initial();
+    for (t = 0; t < 1000; t++) {        /* wait at most 1000 turns for a frame, then give up */
+        if (RXB0CONbits.RXFUL) break;
+        turns++;
+    }
+    setcurGLCD(1, 1);
+    putrsGLCD(t < 1000 ? "GOT FRAME" : "TIMEOUT");
+    while (1) { CANIsRxReady(); }
+}
+"""
+
+
+TIMEOUT_WITH_TIMER1_C = TIMEOUT_C.replace(
+    '#include "APP023_GLCD.h"\n', '#include "APP023_GLCD.h"\n#include <timers.h>\n', 1).replace(
+    "    GLCD_Initial();\n",
+    "    GLCD_Initial();\n"
+    "    OpenTimer1(TIMER_INT_OFF & T1_16BIT_RW & T1_SOURCE_INT & T1_PS_1_1 & T1_OSC1EN_OFF & T1_SYNC_EXT_OFF);\n"
+    "    WriteTimer1(0xFF00);                /* it overflows in 25.6 us, while the loop is parked */\n", 1)
+
+LONG_TIMEOUT_C = TIMEOUT_C.replace("t < 1000", "t < 5000")
+
+
+def _lcd_after(tmp_path: Path, name: str, source: str, seconds: float = 0.05) -> list[str]:
+    from conftest import World
+    world = World()
+    path = tmp_path / name
+    path.write_text(source)
+    board = APP023(world.bus, "station1")
+    board.run(load_firmware(path))
+    world.run(seconds)
+    return board.glcd.lines
+
+
+def test_a_loop_that_copies_one_register_five_times_ends(tmp_path):
+    """It used to park at its second turn, for ever: nothing on the board changed, so it looked like a polling loop."""
+    assert _lcd_after(tmp_path, "copy.py", COPY_FIVE_TIMES)[0].startswith("AFTER")
+
+
+def test_a_c_timeout_loop_times_out_when_no_frame_comes(tmp_path):
+    assert _lcd_after(tmp_path, "timeout.c", TIMEOUT_C)[0].startswith("TIMEOUT")
+
+
+def test_a_counting_loop_is_found_while_changes_it_does_not_read_keep_coming(tmp_path):
+    """Timer1 overflows (after 25.6 us, then every 6.5 ms) and sets TMR1IF: a change on the board, but not one the
+    loop reads, so it stays parked, and its first look comes as if nothing had changed: 1 ms after it parked, so it
+    has timed out by 4.5 ms (GLCD_Initial takes about 2 ms). A look that took the overflow for a change came to nothing
+    and the next one only 2 ms later."""
+    assert TIMEOUT_WITH_TIMER1_C.count("OpenTimer1") == 1
+    assert _lcd_after(tmp_path, "timeout.c", TIMEOUT_WITH_TIMER1_C, 0.0045)[0].startswith("TIMEOUT")
+
+
+def test_a_timeout_of_more_turns_than_a_look_gives_ends_later_than_on_the_chip(tmp_path):
+    """5,000 turns: COUNTED_TURNS at each look (the first 1 ms after it parked, then every 8 ms while it counts), so
+    it times out after about 35 ms, where the chip takes about 2 ms (docs/differences.md, "Busy-waiting")."""
+    assert _lcd_after(tmp_path, "timeout.c", LONG_TIMEOUT_C, 0.015)[0].strip() == ""
+    assert _lcd_after(tmp_path, "timeout.c", LONG_TIMEOUT_C, 0.05)[0].startswith("TIMEOUT")
+
+
+def test_a_pure_polling_loop_still_parks_until_the_frame(world):
+    """Nothing in the loop changes but what it reads: it waits for the frame without turning (a handful of turns)."""
+    from appsim.firmware import (
+        CAN_CONFIG_ALL_VALID_MSG,
+        CAN_TX_STD_FRAME,
+        CANInitialize,
+        CANIsRxReady,
+        CANSendMessage,
+        Delay10KTCYx,
+    )
+    turns = []
+
+    def poller():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        looked = [0]
+        while not CANIsRxReady():
+            looked[0] = looked[0] | 1           # a store that changes nothing: still the same state
+        turns.append(looked[0])
+
+    def sender():
+        CANInitialize(4, 10, 8, 4, 3, CAN_CONFIG_ALL_VALID_MSG)
+        Delay10KTCYx(25)
+        CANSendMessage(0x100, [1], 1, CAN_TX_STD_FRAME)
+
+    waiter = world.node("poller", poller)
+    world.node("sender", sender)
+    world.run(0.1)
+    assert turns == [1]
+    assert waiter.process.local_time < PS_PER_SECOND       # it did not spin through the 25 ms read by read
+
+
+def _ex1_that_reads_adresh_three_times() -> bytes:
+    """The Ex1 solution, its A/D value read three times over (a loop with a counter) before it is sent."""
+    source = (SOLUTIONS / "ex1.c").read_text()
+    done = source.replace("void read_potentiometer(void)\n{\n",
+                          "void read_potentiometer(void)\n{\n    unsigned char k;\n", 1)
+    done = done.replace("    TxData[3] = ADRESH;\n", "    for (k = 0; k < 3; k++)\n        TxData[3] = ADRESH;\n", 1)
+    assert done.count("for (k = 0") == 1
+    return done.encode()
+
+
+def test_a_firmware_with_a_counting_loop_gets_full_marks_in_check_and_in_the_sandbox(tmp_path):
+    path = tmp_path / "ex1.c"
+    path.write_bytes(_ex1_that_reads_adresh_three_times())
+    verdict = check("ex1", path, seed=SEED).to_dict()
+    assert verdict["score"] == verdict["max_score"], verdict
+    with Sandbox(isolation(), Limits()) as sandbox:
+        record = grade_exercise(sandbox, "ex1", "ex1.c", path.read_bytes(), SEED, None, owner="ada")
+    assert (record["score"], record["fault"]) == (verdict["score"], verdict["fault"]), record
+
+
+def test_a_heartbeat_counter_in_the_main_loop_costs_turns_not_marks(tmp_path):
+    """The Ex3 solution with a counter in its main loop, which never ends (a heartbeat): the loop counts, so it turns
+    COUNTED_TURNS reads per change on the board, where it parked before; the checks and the grader's limits hold."""
+    source = (SOLUTIONS / "ex3.c").read_text()
+    beating = source.replace("void main(void)\n", "unsigned int heartbeat;\nvoid main(void)\n", 1)
+    beating = beating.replace("    while (1) {\n", "    while (1) {\n        heartbeat++;\n", 1)
+    assert beating.count("heartbeat") == 2
+    path = tmp_path / "ex3.c"
+    path.write_text(beating)
+    verdict = check("ex3", path, seed=SEED).to_dict()
+    assert verdict["score"] == verdict["max_score"], verdict
+    with Sandbox(isolation(), Limits()) as sandbox:
+        record = grade_exercise(sandbox, "ex3", "ex3.c", path.read_bytes(), SEED, None, owner="ada")
+    assert (record["score"], record["fault"]) == (verdict["score"], None), record
+
+
+EX2 = (SOLUTIONS / "ex2.py").read_text()
+COUNTING_EX2 = {
+    "a heartbeat in its main loop": ("    while True:\n", "    beats = 0\n    while True:\n        beats += 1\n"),
+    "a timeout of 700 turns before each frame it sends": (
+        "            PIR1bits.TMR1IF = 0\n",
+        "            PIR1bits.TMR1IF = 0\n            waited = 0\n"
+        "            while waited < 700 and not CANIsRxReady():\n                waited += 1\n"),
+    "the A/D value read three times over": (
+        "    TxData[3] = SFR.ADRESH\n", "    for _ in range(3):\n        TxData[3] = SFR.ADRESH\n"),
+}
+
+
+@pytest.fixture(scope="module")
+def sandbox():
+    with Sandbox(isolation(), Limits(time_s=30, stall_s=5)) as sandbox:
+        yield sandbox
+
+
+@pytest.mark.parametrize("name", sorted(COUNTING_EX2))
+def test_a_counting_loop_does_the_same_sandboxed_as_in_process(sandbox, tmp_path, monkeypatch, name):
+    """The loop is judged where the firmware runs, in the grader's sandbox by the child: its turns, its looks and what
+    it sends are the same as in `appsim check`, and it passes Ex2's checks."""
+    old, new = COUNTING_EX2[name]
+    assert EX2.count(old) == 1
+    local, remote = both_ways(sandbox, tmp_path, monkeypatch, "ex2", EX2.replace(old, new), ex2_check.run)
+    assert remote == local
+    judged, trace, _ = local
+    assert isinstance(judged, list) and all(passed for _, passed, _ in judged), judged
+    assert len(trace) > 5, "it sent frames"
