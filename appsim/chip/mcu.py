@@ -2,9 +2,9 @@
 core taking interrupts between two instructions.
 
 Each SFR access costs instruction cycles at Fosc/4. A read that polls (the same register, read again
-from the same place in the firmware, with nothing changed since, not even a delay of its own or a timer it reads)
-parks the firmware until a peripheral event changes something it reads: a busy-wait costs one loop turn per event,
-not per cycle.
+from the same place in the firmware, with nothing changed since, not even a delay of its own, a timer it reads or its
+own variables: `appsim.chip.polling`) parks the firmware until a peripheral event changes something it reads: a
+busy-wait costs one loop turn per event, not per cycle.
 """
 from __future__ import annotations
 
