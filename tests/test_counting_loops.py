@@ -198,3 +198,54 @@ def test_a_counting_loop_does_the_same_sandboxed_as_in_process(sandbox, tmp_path
     judged, trace, _ = local
     assert isinstance(judged, list) and all(passed for _, passed, _ in judged), judged
     assert len(trace) > 5, "it sent frames"
+
+
+HOSTILE_VARIABLES = """from appsim.firmware import *
+
+ran = []
+
+
+class Evil(list):
+    def __iter__(self):
+        ran.append("__iter__")
+        raise RuntimeError("__iter__")
+
+    def __hash__(self):
+        ran.append("__hash__")
+        raise RuntimeError("__hash__")
+
+    def __eq__(self, other):
+        ran.append("__eq__")
+        raise RuntimeError("__eq__")
+
+    @property
+    def __class__(self):
+        ran.append("__class__")
+        raise RuntimeError("__class__")
+
+
+class Slotted:
+    __slots__ = ("x",)
+
+    def __getattribute__(self, name):
+        ran.append("__getattribute__")
+        raise RuntimeError(name)
+
+
+def main():
+    GLCD_Initial()
+    evil, slotted, k = Evil([1, 2]), Slotted(), 0
+    while k < 5:
+        k += 1
+        x = SFR.ADRESH
+    setcurGLCD(1, 1)
+    putrsGLCD("AFTER " + ",".join(ran))
+    while True:
+        CANIsRxReady()
+"""
+
+
+def test_comparing_variables_runs_none_of_the_firmwares_own_code(tmp_path):
+    """The kit looks at the loop's variables without calling anything of theirs: an object whose methods raise (or
+    lie about its class) neither crashes the firmware at a register read nor hides the count."""
+    assert _lcd_after(tmp_path, "hostile.py", HOSTILE_VARIABLES)[0].rstrip() == "AFTER"

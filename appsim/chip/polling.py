@@ -192,7 +192,7 @@ def _data_globals(module: dict[str, Any], code: CodeType) -> tuple[str, ...]:
     assigned = _assigned_globals(module)
     names = _DATA_GLOBALS[id(code)] = tuple(
         name for name in code.co_names if name in module
-        and (name in assigned or isinstance(module[name], (list, bytearray, dict, set))))
+        and (name in assigned or issubclass(type(module[name]), (list, bytearray, dict, set))))
     _KEPT.append(code)
     return names
 
@@ -203,7 +203,7 @@ def _assigned_globals(module: dict[str, Any]) -> frozenset[str]:
     if found is None:
         names: set[str] = set()
         codes = [value.__code__ for value in module.values()
-                 if isinstance(value, FunctionType) and value.__globals__ is module]
+                 if type(value) is FunctionType and value.__globals__ is module]
         while codes:
             each = codes.pop()
             names.update(_stored_globals(each))
@@ -228,32 +228,24 @@ def _stored_globals(code: CodeType) -> list[str]:
     return names
 
 
-def _frozen(value: object, depth: int = 0) -> object:
-    """`value` as something hashable that changes when its contents do: a list (a C array, struct or variable whose
-    address is taken, a queue) by its items, a C pointer by where it points and what is there."""
-    if type(value) in _PLAIN:
+def _frozen(value: Any, depth: int = 0) -> object:
+    """`value` as something hashable that changes when its contents do, without running any of the firmware's own
+    code (its __hash__, __iter__ or properties): a list (a C array, struct or variable whose address is taken, a queue)
+    or a tuple (a CANMessage) by its items, the kit's C pointer by where it points and what is there; anything else by
+    its identity."""
+    kind = type(value)
+    if kind in _PLAIN:
         return value
-    if isinstance(value, int):          # an IntEnum's member, a flag
-        return int(value)
-    if isinstance(value, (list, tuple)):
-        if len(value) > FROZEN_ITEMS:
-            return id(value), len(value)
-        items = tuple(value)
-        try:
-            hash(items)                 # ints, bytes, tuples of them (a CANMessage): as they are
-            return items
-        except TypeError:
-            pass
-        if depth < FROZEN_DEPTH:
-            return tuple([item if type(item) in _PLAIN else _frozen(item, depth + 1) for item in items])
-        return id(value), len(items)
-    if isinstance(value, bytearray):
-        return bytes(value)
-    slots = getattr(type(value), "__slots__", None)
+    if issubclass(kind, (list, tuple)):     # (not isinstance: a firmware's object may say it is a list)
+        items = list.copy(value) if issubclass(kind, list) else tuple.__getitem__(value, slice(None))
+        if len(items) > FROZEN_ITEMS or depth >= FROZEN_DEPTH:
+            return id(value), len(items)
+        return tuple([item if type(item) in _PLAIN else _frozen(item, depth + 1) for item in items])
+    if issubclass(kind, bytearray):
+        return bytes(memoryview(value))
+    if issubclass(kind, int):           # an IntEnum's member, a flag
+        return int.__index__(value)
+    slots = kind.__dict__.get("__slots__") if kind.__module__.startswith("appsim.") else None
     if slots and depth < FROZEN_DEPTH:
         return tuple([_frozen(getattr(value, name, None), depth + 1) for name in slots])
-    try:
-        hash(value)
-    except Exception:                   # a firmware's own __hash__ may raise anything
-        return id(value)
-    return value
+    return id(value)
