@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import heapq
+from array import array
 from dataclasses import dataclass, field
 from functools import lru_cache
 from itertools import chain, count, zip_longest
@@ -161,10 +162,11 @@ class Outcome:
 
 @dataclass(slots=True)
 class Run:
-    """The whole frame: each station's outcome, the wire as (time, level) changes from SOF, and when it is idle."""
+    """The whole frame: each station's outcome, the wire's changes (their times from SOF, as array("q") bytes: the
+    first to dominant, then each to the other level), and when it is idle."""
 
     outcomes: dict[str, Outcome]
-    wire: list[tuple[int, int]]
+    wire: bytes
     first_error_ps: int | None          # where the first error flag started on the wire
     first_error: str                    # what the first node to flag saw, "" if none did
     first_error_by: str                 # that node
@@ -815,9 +817,10 @@ class _Run:
         leaders = self.leaders
         at_sof = [n.idle_ps for n in leaders if n.sof_in_intermission]
         wire = self.changes if self.changes is not None else _wire(leaders, self.sof_ps, one_clock)
-        return Run(outcomes, wire, self.first_error_ps, self.first_error,
-                   self.first_error_by, max(n.end_ps for n in leaders),
-                   min(at_sof) if at_sof else max(n.idle_ps for n in leaders), bool(at_sof))
+        offsets = array("q", [time - self.sof_ps for time, _ in wire]).tobytes()
+        return Run(outcomes, offsets, self.first_error_ps, self.first_error, self.first_error_by,
+                   max(n.end_ps for n in leaders), min(at_sof) if at_sof else max(n.idle_ps for n in leaders),
+                   bool(at_sof))
 
 
 def run_frame(sof_ps: int, stations: list[Station]) -> Run:
@@ -869,7 +872,7 @@ def _moved(run: Run, was_ps: int, before: list[Station], sof_ps: int, stations: 
         old, now = injections[name]
         moved.fired = [now[next(i for i, was in enumerate(old) if was is fired)] for fired in outcome.fired]
         outcomes[name] = moved
-    return Run(outcomes, [(time + shift, level) for time, level in run.wire],
+    return Run(outcomes, run.wire,
                None if run.first_error_ps is None else run.first_error_ps + shift, run.first_error,
                run.first_error_by, run.end_ps + shift, run.idle_ps + shift, run.sof_in_intermission)
 

@@ -534,7 +534,7 @@ class Bus:
                 acked += (sender.name,)
             self.trace.append(BusEvent(start, end, sender.name, self._once(frame), self._once(acked),
                                        self._once(error), self._once(tuple(received)), flag_at_bit,
-                                       self._once(array("q", [time - start for time, _ in run.wire]).tobytes())))
+                                       self._once(run.wire)))
             self._bus_idle()
 
         self.sim.call_at(end, end_of_frame)
