@@ -49,7 +49,8 @@ from appsim.can.bittiming import (
 from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
 from appsim.chip.ecan.acceptance import id_pattern, passing_ids
 from appsim.chip.ecan.registers import BY_NAME, EWARN, RXB0OVFL, TXBP, TXWARN
-from appsim.chip.mcu import FOSC_HZ, PIC18F8680, SFR_ACCESS_CYCLES
+from appsim.chip.mcu import FOSC_HZ, PIC18F8680, PROBE_COUNTING_PS, PROBE_FIRST_PS, SFR_ACCESS_CYCLES
+from appsim.chip.sfr import current_mcu
 from appsim.chip.usart import FIFO_DEPTH, PC_BAUD, decode
 from appsim.cli import build_parser
 from appsim.firmware import (
@@ -439,6 +440,28 @@ def acquiring_4_tad_at_fosc_64() -> tuple[int, int]:
     return mcu.adc.conversion_ps(), 64 * PS_PER_SECOND // FOSC_HZ
 
 
+def timeout_ps(turns: int) -> int:
+    """How long a loop of `turns` turns that reads RXB0CON each turn and never sees a frame takes here, from its first
+    read to its end (docs/differences.md, "Busy-waiting")."""
+    from appsim.firmware import RXB0CONbits
+    span: list[int] = []
+
+    def timing_out() -> None:
+        process = current_mcu().process
+        assert process is not None
+        start, turn = process.local_time, 0
+        while turn < turns and not RXB0CONbits.RXFUL:
+            turn += 1
+        span.append(process.local_time - start)
+
+    sim = Simulator()
+    process = PIC18F8680(sim, "timeout").run(timing_out)
+    sim.run(until=PS_PER_SECOND)
+    assert process.failure is None, process.failure_text
+    (taken,) = span
+    return taken
+
+
 Claim = Callable[[dict], str]
 """How the kit computes a quantity the prose states, from the notebook's namespace where that prose stands."""
 
@@ -544,6 +567,9 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
     },
     "differences.md": {
         "200 ns": lambda ns: f"{SFR_ACCESS_CYCLES * 4 * 10**9 // FOSC_HZ} ns",     # the 2 cycles of one access
+        "1 ms": lambda ns: milli(Fraction(PROBE_FIRST_PS, PS_PER_SECOND)),
+        "8 ms": lambda ns: milli(Fraction(PROBE_COUNTING_PS, PS_PER_SECOND)),
+        "34 ms": lambda ns: milli(Fraction(timeout_ps(5000), PS_PER_SECOND)),
         "2 s": lambda ns: f"{WATCHDOG_SECONDS:g} s",
         "24 µs": lambda ns: micro(Fraction(acquiring_4_tad_at_fosc_64()[0], PS_PER_SECOND)),
         "25.6 µs": lambda ns: micro(Fraction(sum(acquiring_4_tad_at_fosc_64()), PS_PER_SECOND)),
