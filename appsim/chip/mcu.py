@@ -87,6 +87,24 @@ class ReadAhead(NamedTuple):
     probed: bool
 
 
+class Parking:
+    """A parked firmware as the board keeps it: what it read (what wakes it), and for a polling loop the looks at it
+    that tell whether it counts (`PIC18F8680._park_polling`): where it parked and since when, the look ahead, when each
+    place is due to be looked at again, and what the last look saw."""
+
+    __slots__ = ("after", "event", "looked", "parked_at", "parked_on", "parked_since", "probed_read", "probing")
+
+    def __init__(self) -> None:
+        self.parked_on: dict[int, int] | None = None        # what a parked loop read (None: wake on any change)
+        self.parked_at: tuple[int, int] | None = None     # where the loop parked: (address, site)
+        self.parked_since = 0
+        self.event: Timer | None = None
+        self.after: dict[tuple[int, int], int] = {}        # place -> how long after it parks there it is looked at
+        self.probing = False
+        self.looked: tuple[tuple[int, int], int] | None = None     # where a look woke the loop, and when
+        self.probed_read = False        # the read just done ended a park a look woke (the sandbox's loop judges)
+
+
 class PIC18F8680(SFRNames):
     """One microcontroller on the simulated clock, built whole: the ECAN module (F00h..F77h, FA3h..FA5h), the A/D,
     Timer1, the EUSART, the interrupt logic (INTCON.., RCON, PIR1/PIE1/IPR1) and PORTJ on its SFR bus. A board wires
@@ -99,7 +117,7 @@ class PIC18F8680(SFRNames):
     cycle, and a polling loop parked on its registers wakes to take one. While GIE is 0 nothing of this costs."""
 
     def __init__(self, sim: Simulator, name: str = "node", *, fosc: int = FOSC_HZ):
-        # 28 attributes: CPython 3.11 keeps up to 29 of an object's attributes inline, where they are fastest to reach;
+        # 29 attributes: CPython 3.11 keeps up to 29 of an object's attributes inline, where they are fastest to reach;
         # a 30th cost every register access about 3 %. New state goes to the peripherals (see Interrupts).
         self.sim = sim
         self.name = name
@@ -119,16 +137,7 @@ class PIC18F8680(SFRNames):
         self._polled: dict[int, int] = {}
         self.loop = PollingLoop()
         self._polled_pure = True
-        self._parked_on: dict[int, int] | None = None       # what a parked loop read (None: wake on any change)
-        # The probe that looks whether a parked loop counts (see `_park_polling`).
-        self._parked_at: tuple[int, int] | None = None     # where the loop parked: (address, site)
-        self._parked_since = 0
-        self._probe_event: Timer | None = None
-        self._probe_after: dict[tuple[int, int], int] = {}
-        self._probing = False
-        self._reads_again = 0               # reads again so far, and where a probe looked and how many there were then
-        self._looked: tuple[tuple[int, int], int] | None = None
-        self.probed_read = False            # the read just done ended a park a probe woke (the sandbox's loop judges)
+        self.parking = Parking()                            # what a parked firmware read, the looks at its loop
         self.time_varying: set[int] = set()
         # The registers a read-ahead offered last, and how each is read (see `read_ahead`).
         self._offered: tuple[int, ...] | None = None
@@ -216,7 +225,6 @@ class PIC18F8680(SFRNames):
         if address in self.time_varying:
             self.version += 1
             return
-        self._reads_again += 1
         loop = self.loop
         if self._polled_version != self.version:
             self._polled_version = self.version
@@ -234,58 +242,60 @@ class PIC18F8680(SFRNames):
             return
         if loop.from_known_place(address, place, judged=here) is not None:
             return
-        self._parked_on = self._polled if self._polled_pure else None
+        self.parking.parked_on = self._polled if self._polled_pure else None
         self._park_polling(process, key, here)
 
     def _park_polling(self, process: Process, parked_at: tuple[int, int], here: bool) -> None:
         """Park a polling loop. One that stays parked PROBE_FIRST_PS is woken once with nothing changed that it reads
         (`_probe`): the loop it is in may count after all, which its variables at its next read again tell
         (`PollingLoop.probed`, here or in the sandbox). Each look at one place comes twice as late as the one before,
-        up to PROBE_LAST_PS; unless the loop turned on after the last look there (it counts, and has used its turns):
-        then the next comes after PROBE_COUNTING_PS. A loop that counts (a timeout) so turns COUNTED_TURNS reads per
-        change on the board, and as many every PROBE_COUNTING_PS at least: a free-running counter costs about 128,000
-        reads a simulated second, not the chip's millions."""
-        if self._looked is not None:
-            looked_at, reads = self._looked
-            self._looked = None
-            if self._reads_again - reads > PROBE_PASSES:
-                self._probe_after[looked_at] = PROBE_COUNTING_PS
-        self._parked_at, self._parked_since = parked_at, process.local_time
-        due = process.local_time + self._probe_after.get(parked_at, PROBE_FIRST_PS)
-        event = self._probe_event
+        up to PROBE_LAST_PS; unless the loop ran on after the last look there for longer than PROBE_PASSES reads take
+        (it counts, or counted to its end): then the next comes after PROBE_COUNTING_PS. A loop that counts (a
+        timeout) so turns COUNTED_TURNS reads per change on the board, and as many every PROBE_COUNTING_PS at least: a
+        free-running counter costs about 128,000 reads a simulated second, not the chip's millions."""
+        parking = self.parking
+        if parking.looked is not None:
+            looked_at, woke_at = parking.looked
+            parking.looked = None
+            if process.local_time - woke_at > PROBE_PASSES * self.access_ps:
+                parking.after[looked_at] = PROBE_COUNTING_PS        # it turned on: more than a turn's reads
+        parking.parked_at, parking.parked_since = parked_at, process.local_time
+        due = process.local_time + parking.after.get(parked_at, PROBE_FIRST_PS)
+        event = parking.event
         if event is None or event.time > due:       # one look ahead at a time; `_probe` puts it off if it may
             if event is not None:
                 event.cancel()
-            self._probe_event = self.sim.call_at(due, self._probe)
+            parking.event = self.sim.call_at(due, self._probe)
         process.park()
-        self._parked_at = None
-        if self._probing:
-            self._probing = False
-            if self.version == self._polled_version:        # nothing it reads changed since the probe woke it
+        parking.parked_at = None
+        if parking.probing:
+            parking.probing = False
+            if self.version == self._polled_version:        # nothing it reads changed since the look woke it
                 self.loop.probed(*parked_at, judged=here)
-                self.probed_read = not here
+                parking.probed_read = not here
 
     def _probe(self) -> None:
         """Wake the parked polling loop to look whether it counts, if it is time: changes it does not read (Timer1
         overflowing) may have come meanwhile, and it reads as it did, so its places still hold."""
-        self._probe_event = None
-        parked_at, process, parked_on = self._parked_at, self.process, self._parked_on
+        parking = self.parking
+        parking.event = None
+        parked_at, process, parked_on = parking.parked_at, self.process, parking.parked_on
         if parked_at is None or process is None or not process.parked or parked_on is None:
             return
-        after = self._probe_after.get(parked_at, PROBE_FIRST_PS)
-        due = self._parked_since + after
+        after = parking.after.get(parked_at, PROBE_FIRST_PS)
+        due = parking.parked_since + after
         if due > self.sim.now:
-            self._probe_event = self.sim.call_at(due, self._probe)
+            parking.event = self.sim.call_at(due, self._probe)
             return
-        if len(self._probe_after) >= POLLING_SITES:
-            self._probe_after.clear()
-        self._probe_after[parked_at] = min(2 * after, PROBE_LAST_PS)
+        if len(parking.after) >= POLLING_SITES:
+            parking.after.clear()
+        parking.after[parked_at] = min(2 * after, PROBE_LAST_PS)
         if self.version != self._polled_version:
             self._polled_version = version = self.version
             for address in parked_on:
                 self._seen[address] = version
-        self._probing = True
-        self._looked = parked_at, self._reads_again
+        parking.probing = True
+        parking.looked = parked_at, max(process.local_time, self.sim.now)
         process.wake()
 
     def read_ahead(self, addresses: tuple[int, ...], written: Iterable[int] = ()) -> ReadAhead:
@@ -314,7 +324,8 @@ class PIC18F8680(SFRNames):
         seen, version = self._seen, self.version
         readers = self._offered_readers
         current = self._polled_version == version
-        probed, self.probed_read = self.probed_read, False
+        parking = self.parking
+        probed, parking.probed_read = parking.probed_read, False
         values = [read(a) for a, read in readers]
         after_writes = []
         for address in written:
@@ -418,7 +429,7 @@ class PIC18F8680(SFRNames):
                 return
             started = process.local_time
             over = self.sim.call_at(started + left, process.wake)
-            self._parked_on = {}                # nothing read: only the end of the time or an interrupt wakes it
+            self.parking.parked_on = {}     # nothing read: only the end of the time or an interrupt wakes it
             process.park()
             over.cancel()
             left -= process.local_time - started
@@ -434,7 +445,7 @@ class PIC18F8680(SFRNames):
             if why is not None:
                 self._hang(f"{process.routine} waits in an empty loop at {loop}, which only an interrupt routine can "
                            f"end, and no interrupt can come: {why}. The board would spin there for ever")
-            self._parked_on = {}
+            self.parking.parked_on = {}
             process.park()
         self._interrupt(process)
 
@@ -459,7 +470,7 @@ class PIC18F8680(SFRNames):
             process.wake()
 
     def _loop_would_see_a_change(self) -> bool:
-        parked_on = self._parked_on
+        parked_on = self.parking.parked_on
         if parked_on is None:
             return True
         readers = self._readers
@@ -471,7 +482,7 @@ class PIC18F8680(SFRNames):
         if self.process is not None and not self.process.dead:
             self.process.stop()
         forget_firmware_code()          # new firmware brings new code objects (a grader loads thousands)
-        self.loop, self._probe_after = PollingLoop(), {}
+        self.loop, self.parking = PollingLoop(), Parking()
         self.interrupts.reset(routines or {})
         context = contextvars.Context()
         context.run(RUNNING_MCU.set, self)                  # what `current_mcu()` gives its firmware
