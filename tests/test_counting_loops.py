@@ -178,6 +178,23 @@ COUNTING_EX2 = {
         "            while waited < 700 and not CANIsRxReady():\n                waited += 1\n"),
     "the A/D value read three times over": (
         "    TxData[3] = SFR.ADRESH\n", "    for _ in range(3):\n        TxData[3] = SFR.ADRESH\n"),
+    # more registers than a read-ahead offers (16): the child judges the others by the places the board sends it
+    "a sum over 17 registers, three times over": (
+        "            PIR1bits.TMR1IF = 0\n",
+        "            PIR1bits.TMR1IF = 0\n            total = 0\n            for _ in range(3):\n"
+        + "".join(f"                total += SFR.{name}\n" for name in (
+            "ADRESH", "ADRESL", "PORTJ", "RXB0CON", "RXB1CON", "TXB0CON", "COMSTAT", "CANSTAT", "PIR3", "PIE3",
+            "INTCON", "PIR1", "T1CON", "ADCON0", "ADCON1", "ADCON2", "RXB0D0"))),
+}
+
+# Pure polling loops whose variables are made again at each turn, equal but new: no change, in every run.
+FRESH_EX2 = {
+    "a dict": "{'turn': 1}",
+    "an object of its own class": "type('Fresh', (), {})()",
+    "a complex number": "complex(1, 2)",
+    "a NaN": "float('nan')",
+    "a generator": "(n for n in range(2))",
+    "a huge shared list": "[[[0] * 1024] * 1024] * 1024",
 }
 
 
@@ -185,6 +202,19 @@ COUNTING_EX2 = {
 def sandbox():
     with Sandbox(isolation(), Limits(time_s=30, stall_s=5)) as sandbox:
         yield sandbox
+
+
+@pytest.mark.parametrize("name", sorted(FRESH_EX2))
+def test_a_polling_loop_with_fresh_objects_still_polls_the_same_in_every_run(sandbox, tmp_path, monkeypatch, name):
+    """An object made again at each turn is no change (it used to be compared by its identity, which memory reuse
+    makes the same or not from run to run), and a huge list costs the look a bounded budget, not a watchdog fault:
+    the bus is the plain solution's, in-process and sandboxed."""
+    old = "    while True:\n"
+    fresh = EX2.replace(old, f"    while True:\n        fresh = {FRESH_EX2[name]}\n", 1)
+    (tmp_path / "plain").mkdir()
+    plain = both_ways(sandbox, tmp_path / "plain", monkeypatch, "ex2", EX2, ex2_check.run)
+    local, remote = both_ways(sandbox, tmp_path, monkeypatch, "ex2", fresh, ex2_check.run)
+    assert local == remote == plain[0] == plain[1]
 
 
 @pytest.mark.parametrize("name", sorted(COUNTING_EX2))
@@ -225,6 +255,7 @@ class Evil(list):
 
 
 class Slotted:
+    __module__ = "appsim.chip.fake"         # as if it were the kit's own
     __slots__ = ("x",)
 
     def __getattribute__(self, name):
@@ -232,9 +263,24 @@ class Slotted:
         raise RuntimeError(name)
 
 
+class Meta(type):
+    def __hash__(cls):
+        ran.append("metaclass __hash__")
+        raise RuntimeError("__hash__")
+
+    @property
+    def __dict__(cls):
+        ran.append("metaclass __dict__")
+        raise RuntimeError("__dict__")
+
+
+class Odd(metaclass=Meta):
+    pass
+
+
 def main():
     GLCD_Initial()
-    evil, slotted, k = Evil([1, 2]), Slotted(), 0
+    evil, slotted, odd, k = Evil([1, 2]), Slotted(), Odd(), 0
     while k < 5:
         k += 1
         x = SFR.ADRESH

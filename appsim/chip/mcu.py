@@ -74,8 +74,9 @@ class ReadAhead(NamedTuple):
     """See `PIC18F8680.read_ahead`: the time the firmware may spend, whether `sites` (address, call site) are the
     polling loop's at this change, the registers it may read without asking (their addresses; their values, and
     whether each was read since the last change, both as bytes), those sites, and what the registers read after a
-    write of one of `written` (its address, and their values then, as bytes), where the board can tell; and whether
-    the read it comes after ended a park a probe woke (`PIC18F8680._park_polling`)."""
+    write of one of `written` (its address, and their values then, as bytes), where the board can tell; whether the
+    read it comes after ended a park a look woke (`PIC18F8680._park_polling`), and whether that read was a read again
+    with nothing changed (`PIC18F8680._read_again` judged it)."""
 
     budget_ps: int
     current: bool
@@ -85,6 +86,7 @@ class ReadAhead(NamedTuple):
     sites: list[tuple[int, int]]
     after_writes: list[tuple[int, bytes]]
     probed: bool
+    judged: bool
 
 
 class Parking:
@@ -92,7 +94,8 @@ class Parking:
     that tell whether it counts (`PIC18F8680._park_polling`): where it parked and since when, the look ahead, when each
     place is due to be looked at again, and what the last look saw."""
 
-    __slots__ = ("after", "event", "looked", "parked_at", "parked_on", "parked_since", "probed_read", "probing")
+    __slots__ = ("after", "event", "judged", "looked", "parked_at", "parked_on", "parked_since", "probed_read",
+                 "probing")
 
     def __init__(self) -> None:
         self.parked_on: dict[int, int] | None = None        # what a parked loop read (None: wake on any change)
@@ -103,6 +106,7 @@ class Parking:
         self.probing = False
         self.looked: tuple[tuple[int, int], int] | None = None     # where a look woke the loop, and when
         self.probed_read = False        # the read just done ended a park a look woke (the sandbox's loop judges)
+        self.judged = False             # the sandbox's read just done was a read again (the grader clears it before)
 
 
 class PIC18F8680(SFRNames):
@@ -225,6 +229,7 @@ class PIC18F8680(SFRNames):
         if address in self.time_varying:
             self.version += 1
             return
+        self.parking.judged = True
         loop = self.loop
         if self._polled_version != self.version:
             self._polled_version = self.version
@@ -238,7 +243,8 @@ class PIC18F8680(SFRNames):
         if key not in sites:                    # PollingLoop.new_site, here: every polling loop's path
             if len(sites) < POLLING_SITES:
                 sites.add(key)
-            loop.probe = None
+            if loop.probe is not None:
+                loop.end_look()
             return
         if loop.from_known_place(address, place, judged=here) is not None:
             return
@@ -326,6 +332,7 @@ class PIC18F8680(SFRNames):
         current = self._polled_version == version
         parking = self.parking
         probed, parking.probed_read = parking.probed_read, False
+        judged, parking.judged = parking.judged, False
         values = [read(a) for a, read in readers]
         after_writes = []
         for address in written:
@@ -335,7 +342,7 @@ class PIC18F8680(SFRNames):
                     self._offered_addresses, values, strict=True)])))
         return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, self._offered_addresses,
                          bytes(values), bytes([seen.get(a) == version for a, _ in readers]),
-                         list(self.loop.sites) if current else [], after_writes, probed)
+                         list(self.loop.sites) if current else [], after_writes, probed, judged)
 
     def write(self, address: int, value: int) -> None:
         """Write the register; an interrupt this write (or an event while it waited) makes pending is taken after it."""

@@ -17,7 +17,9 @@ COUNTED_TURNS = 1024        # reads again in a new state (a turn of CANIsRxReady
                             # make per change on the board, or per probe, as on the chip; then they park as polling does
 PROBE_PASSES = 64           # reads again elsewhere a probed loop may make on its way back to where it was woken
 FROZEN_DEPTH = 3            # lists in lists (a queue of frames, an array of structs) are compared this deep
-FROZEN_ITEMS = 4096         # items of a list compared one by one, at most; a longer one by its identity and length
+FROZEN_ITEMS = 256          # items of a list compared one by one, at most; a longer one by its length
+FROZEN_BUDGET = 4096        # items one look at the variables takes in, at most; the rest counts as unchanged
+FROZEN_FRAMES = 8           # the innermost firmware frames whose variables are looked at (the outer ones wait for them)
 
 
 # id(code object) -> FIRMWARE, KIT or ENTRY; id(code object) -> the names of data it reads from its module; id(module
@@ -40,25 +42,39 @@ def firmware_entry(function: Callable[..., object]) -> None:
 def firmware_site(depth: int = 2, *, variables: bool = False) -> int:
     """Where in the firmware (outside this package) the current register access comes from, as a number: its call
     stack up to its main(), each firmware frame's code object and instruction offset, hashed. A polling loop reads from
-    one place. With `variables`, what the firmware holds instead of where it is: each frame's variables. The walk starts
-    `depth` frames up (2: the caller of the function that calls this, the register read itself): each frame it looks at
-    that had no frame object is given one, which costs more than the rest of it."""
+    one place. With `variables`, what the firmware holds instead of where it is: the variables of its FROZEN_FRAMES
+    innermost frames (`frame_variables`). The walk starts `depth` frames up (2: the caller of the function that calls
+    this, the register read itself): each frame it looks at that had no frame object is given one, which costs more
+    than the rest of it."""
     frame: FrameType | None = sys._getframe(depth)
     kinds = _KINDS
-    site = 0
+    site, frames, look = 0, FROZEN_FRAMES, _Look()
     while frame is not None:
         code = frame.f_code
         kind = kinds.get(id(code))
         if kind is None:
-            kind = kinds[id(code)] = (ENTRY if code in _ENTRIES else
-                                      KIT if frame.f_globals.get("__name__", "").startswith("appsim.") else FIRMWARE)
-            _KEPT.append(code)
+            kind = _kind(frame, code)
         if kind == FIRMWARE:
-            site = hash((site, id(code), frame_variables(frame) if variables else frame.f_lasti))
+            if not variables:
+                site = hash((site, id(code), frame.f_lasti))
+            elif frames:
+                site = hash((site, id(code), frame_variables(frame, look)))
+                frames -= 1
+            else:
+                break
         elif kind == ENTRY:
             break
         frame = frame.f_back
     return site
+
+
+def _kind(frame: FrameType, code: CodeType) -> int:
+    """Whether `code` is the firmware's, the kit's, or what calls a firmware's main(); kept for its next time."""
+    name = dict.get(frame.f_globals, "__name__")        # (not .get, .startswith: a firmware's own may run)
+    kit = type(name) is str and str.startswith(name, "appsim.")
+    kind = _KINDS[id(code)] = ENTRY if code in _ENTRIES else KIT if kit else FIRMWARE
+    _KEPT.append(code)
+    return kind
 
 
 def forget_firmware_code() -> None:
@@ -87,19 +103,28 @@ class PollingLoop:
 
     def changed(self) -> None:
         """The board changed: every place is new again."""
-        self.sites, self.counted, self.probe = set(), 0, None
+        if self.probe is not None:
+            self.end_look()
+        self.sites, self.counted = set(), 0
 
     def new_site(self, site: tuple[int, int]) -> bool:
         """Whether the loop has not read from `site` (address, place) since the last change; it has now, if there is
-        room (a loop that reads from more places never parks). A look in progress ends there: the loop left the way
-        it polled (in the sandbox, a new place is also how a counting loop's read comes)."""
+        room (a loop that reads from more places never parks). A look in progress ends there (`end_look`)."""
         sites = self.sites
         if site in sites:
             return False
         if len(sites) < POLLING_SITES:
             sites.add(site)
-        self.probe = None
+        if self.probe is not None:
+            self.end_look()
         return True
+
+    def end_look(self) -> None:
+        """The look in progress ends with the loop elsewhere than where it was woken (a new place, a change on the
+        board): it left the way it polled, its count run out. Where it was woken and the places it passed count."""
+        assert self.probe is not None
+        probe, self.probe = self.probe, None
+        self._count(probe.passed | {probe.at})
 
     def goes_on(self, address: int, place: int, *, judged: bool = True) -> int | None:
         """A read again of `address` from `place` (`firmware_site`) with nothing changed on the board since: the site
@@ -146,6 +171,15 @@ class PollingLoop:
         self.counted += 1
         return site
 
+    def mark(self) -> tuple[int, _Probe | None, set[tuple[int, int]]]:
+        """What a read again may change here, to `restore` if it turns out to have been none (in the sandbox, the
+        board may change before the read it asks for)."""
+        probe = self.probe
+        return self.counted, None if probe is None else probe.copy(), set(self.counting)
+
+    def restore(self, mark: tuple[int, _Probe | None, set[tuple[int, int]]]) -> None:
+        self.counted, self.probe, self.counting = mark
+
     def probed(self, address: int, place: int, *, judged: bool = True) -> None:
         """The loop parked at its read of `address` from `place` was woken with nothing changed, to see whether it
         counts: it goes on to that place again (PROBE_PASSES reads again elsewhere at most), and its variables there
@@ -167,21 +201,25 @@ class _Probe:
         self.passed: set[tuple[int, int]] = set()
         self.passes = PROBE_PASSES
 
+    def copy(self) -> _Probe:
+        copy = _Probe(self.at, self.variables)
+        copy.passed, copy.passes = set(self.passed), self.passes
+        return copy
 
-def frame_variables(frame: FrameType) -> tuple[object, ...]:
+
+def frame_variables(frame: FrameType, look: _Look) -> tuple[object, ...]:
     """A firmware frame's variables, as values equal only when nothing in them changed: its locals, and the module
-    globals its code names that can change."""
+    globals its code names that can change (`_frozen`, within what is left of the `look`)."""
     code, module = frame.f_code, frame.f_globals
     names = _DATA_GLOBALS.get(id(code))
     if names is None:
         names = _data_globals(module, code)
-    values = (*frame.f_locals.values(), *map(module.get, names))
-    if set(map(type, values)) <= _PLAIN:
-        return values
-    return tuple([value if type(value) in _PLAIN else _frozen(value) for value in values])
+    return tuple([_frozen(value, look) for value in (*frame.f_locals.values(),
+                                                         *(dict.get(module, name) for name in names))])
 
 
-_PLAIN = frozenset({int, bool, str, bytes, float, type(None)})
+_PLAIN = frozenset(map(id, (int, bool, str, bytes, float, complex, type(None))))   # by id: a type's hash may be its
+                                                                                   # metaclass's, the firmware's code
 _STORES_GLOBAL = frozenset({opcode.opmap["STORE_GLOBAL"], opcode.opmap["DELETE_GLOBAL"]})
 _EXTENDED_ARG = opcode.opmap["EXTENDED_ARG"]
 
@@ -191,8 +229,8 @@ def _data_globals(module: dict[str, Any], code: CodeType) -> tuple[str, ...]:
     list, an array it fills."""
     assigned = _assigned_globals(module)
     names = _DATA_GLOBALS[id(code)] = tuple(
-        name for name in code.co_names if name in module
-        and (name in assigned or issubclass(type(module[name]), (list, bytearray, dict, set))))
+        name for name in code.co_names if dict.__contains__(module, name)
+        and (name in assigned or issubclass(type(dict.__getitem__(module, name)), (list, bytearray))))
     _KEPT.append(code)
     return names
 
@@ -202,7 +240,7 @@ def _assigned_globals(module: dict[str, Any]) -> frozenset[str]:
     found = _ASSIGNED.get(id(module))
     if found is None:
         names: set[str] = set()
-        codes = [value.__code__ for value in module.values()
+        codes = [value.__code__ for value in dict.values(module)
                  if type(value) is FunctionType and value.__globals__ is module]
         while codes:
             each = codes.pop()
@@ -228,24 +266,59 @@ def _stored_globals(code: CodeType) -> list[str]:
     return names
 
 
-def _frozen(value: Any, depth: int = 0) -> object:
+class _Look:
+    """One look at a firmware's variables: how many items it may still take in, and the lists it took in already (a
+    list shared by many, `[[0] * 3000] * 3000`, is taken in once)."""
+
+    __slots__ = ("left", "seen")
+
+    def __init__(self) -> None:
+        self.left = FROZEN_BUDGET
+        self.seen: dict[int, object] = {}
+
+
+_UNSEEN = "(not looked at)"             # what is past a look's budget or depth: the same at every look
+_OTHER = "(compared by kind only)"      # any other object: the same at every look, whatever its identity
+_NAN = "(NaN)"
+
+
+def compared_by_slots(kind: type) -> None:
+    """Compare the kit's own slotted `kind` (the C runtime's pointer) by what its slots hold."""
+    _BY_SLOTS[id(kind)] = kind
+
+
+_BY_SLOTS: dict[int, type] = {}         # by id, as _PLAIN
+
+
+def _frozen(value: Any, look: _Look, depth: int = 0) -> object:
     """`value` as something hashable that changes when its contents do, without running any of the firmware's own
-    code (its __hash__, __iter__ or properties): a list (a C array, struct or variable whose address is taken, a queue)
-    or a tuple (a CANMessage) by its items, the kit's C pointer by where it points and what is there; anything else by
-    its identity."""
+    code (its __hash__, __iter__, properties, metaclass): the plain values as they are, a list (a C array, struct or
+    variable whose address is taken, a queue) or a tuple (a CANMessage) by its items, the kit's own slotted types by
+    their slots; any other object by its kind only, so that an object made again at each turn (a dict, a class's
+    instance, a generator) is no change, and the look is the same in every run."""
     kind = type(value)
-    if kind in _PLAIN:
-        return value
-    if issubclass(kind, (list, tuple)):     # (not isinstance: a firmware's object may say it is a list)
-        items = list.copy(value) if issubclass(kind, list) else tuple.__getitem__(value, slice(None))
-        if len(items) > FROZEN_ITEMS or depth >= FROZEN_DEPTH:
-            return id(value), len(items)
-        return tuple([item if type(item) in _PLAIN else _frozen(item, depth + 1) for item in items])
-    if issubclass(kind, bytearray):
-        return bytes(memoryview(value))
+    if id(kind) in _PLAIN:
+        return _NAN if kind is float and value != value else value     # a NaN's hash is its identity's
+    if look.left <= 0 or depth >= FROZEN_DEPTH:
+        return _UNSEEN
+    if issubclass(kind, (list, tuple, bytearray)):
+        known = look.seen.get(id(value))
+        if known is not None:
+            return known
+        items = (list.copy(value) if issubclass(kind, list) else bytes(memoryview(value))
+                 if issubclass(kind, bytearray) else tuple.__getitem__(value, slice(None)))
+        if len(items) > FROZEN_ITEMS:
+            frozen: object = (_UNSEEN, len(items))
+        elif issubclass(kind, bytearray):
+            frozen = items
+        else:
+            frozen = tuple([_frozen(item, look, depth + 1) for item in items])
+        look.left -= len(items) + 1
+        look.seen[id(value)] = frozen
+        return frozen
     if issubclass(kind, int):           # an IntEnum's member, a flag
         return int.__index__(value)
-    slots = kind.__dict__.get("__slots__") if kind.__module__.startswith("appsim.") else None
-    if slots and depth < FROZEN_DEPTH:
-        return tuple([_frozen(getattr(value, name, None), depth + 1) for name in slots])
-    return id(value)
+    if id(kind) in _BY_SLOTS:
+        look.left -= 1
+        return tuple([_frozen(getattr(value, name, None), look, depth + 1) for name in kind.__slots__])
+    return _OTHER

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from appsim.chip.polling import compared_by_slots
 from appsim.errors import CRuntimeError
 
 
@@ -69,6 +70,9 @@ class Ptr:
 
     def __repr__(self) -> str:
         return f"&{self.name}[{self.i - self.lo}]"
+
+
+compared_by_slots(Ptr)          # a loop that counts through a pointer (`*p++ = ADRESH`) counts
 
 
 class NoValue:

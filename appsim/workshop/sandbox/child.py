@@ -61,24 +61,24 @@ class RemoteMCU(SFRNames):
 
     def read(self, address: int, site: int | None = None) -> int:
         ahead = self._ahead
-        place = None
-        if ahead is not None and address in ahead:
-            if address not in self._seen:       # the first read since the change: where it comes from does not matter
-                if self._left_ps >= self.access_ps:
-                    self._seen.add(address)
-                    return self._served(address, 0, ahead[address])
-            else:                               # read again: PIC18F8680._read_again's rule, judged here
-                if not self._sites_current:
-                    self._loop.changed()
-                    self._sites_current = True
-                place = firmware_site()
-                turned_on = self._loop.goes_on(address, place)
-                if turned_on is not None:       # it turns on: a read that cannot park, at a site new to the board
-                    if self._left_ps >= self.access_ps:
-                        return self._served(address, turned_on, ahead[address])
-                    place = turned_on
-        if place is None:
-            place = firmware_site()
+        value = ahead.get(address) if ahead is not None else None      # what the read-ahead says it reads
+        offered = value is not None and self._left_ps >= self.access_ps
+        if offered and address not in self._seen:  # the first read since the change: where it comes from is no matter
+            self._seen.add(address)
+            return self._served(address, 0, value)  # type: ignore[arg-type]  # offered: not None
+        place = firmware_site()
+        judged = None
+        known = (address, place) in self._loop.sites
+        if (ahead is not None and address in self._seen) or known:
+            if not self._sites_current:         # a read again: PIC18F8680._read_again's rule, judged here
+                self._loop.changed()
+                self._sites_current = True
+            judged = self._loop.mark()
+            turned_on = self._loop.goes_on(address, place)
+            if turned_on is not None:           # it turns on: a read that cannot park, at a site new to the board
+                if offered:
+                    return self._served(address, turned_on, value)  # type: ignore[arg-type]
+                place = turned_on
         self._ahead = None                      # a read that would park (or that the read-ahead does not cover)
         self._pending += wire.READ_ITEM.pack(wire.READ, _address(address), place)
         self.flush()
@@ -88,15 +88,21 @@ class RemoteMCU(SFRNames):
             reply = wire.LENGTH.pack(0) + self.answer()
             if reply[4:5] != wire.VALUE:
                 raise RuntimeError("the grader answered a register read with something else")
-        if len(reply) > 6 and self._read_ahead(reply[6:]):
+        probed, again = self._read_ahead(reply[6:])
+        if judged is not None and not again:
+            self._loop.restore(judged)          # the board changed before the read: it was no read again after all
+        elif judged is None and again and not known and self._loop.probe is not None:
+            self._loop.end_look()               # a read again from a new place, as the board saw (PollingLoop.new_site)
+        if probed:
             self._loop.probed(address, place)   # it parked, and was woken to see whether it counts
         return reply[5]
 
-    def _read_ahead(self, data: bytes) -> bool:
-        """Take a read-ahead; whether the read it answers ended a park that a probe woke."""
-        self._left_ps, current, self._ahead, self._seen, sites, self._after, probed = wire.decode_read_ahead(data)
+    def _read_ahead(self, data: bytes) -> tuple[bool, bool]:
+        """Take a read-ahead; whether the read it answers ended a park that a look woke, and was a read again."""
+        (self._left_ps, current, self._ahead, self._seen, sites, self._after, probed,
+         again) = wire.decode_read_ahead(data)
         self._loop.sites, self._sites_current = sites, current
-        return probed
+        return probed, again
 
     def _served(self, address: int, place: int, value: int) -> int:
         self._left_ps -= self.access_ps

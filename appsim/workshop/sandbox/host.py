@@ -167,6 +167,7 @@ class SandboxedFirmware:
                 _, address, site = wire.READ_ITEM.unpack_from(message, 1)
                 if address in wire.ADDRESSES:
                     self._waiting = True
+                    mcu.parking.judged = False      # (the read-ahead says whether this read was a read again)
                     try:
                         value = mcu.read(address, site)
                     except Exception as error:       # the firmware sees it raised, as on a local board
@@ -218,6 +219,7 @@ class SandboxedFirmware:
             if self._error is None:
                 try:
                     if op is wire.READ:
+                        mcu.parking.judged = False
                         value = mcu.read(first, second)
                         self._recent(first)
                     elif op is wire.WRITE or op is wire.WRITE_WAIT:
