@@ -49,7 +49,7 @@ from appsim.can.bittiming import (
 from appsim.can.frame import EXTENDED_ID_MAX, STANDARD_ID_MAX, CanFrame
 from appsim.chip.ecan.acceptance import id_pattern, passing_ids
 from appsim.chip.ecan.registers import BY_NAME, EWARN, RXB0OVFL, TXBP, TXWARN
-from appsim.chip.mcu import FOSC_HZ, PIC18F8680, PROBE_COUNTING_PS, PROBE_FIRST_PS, SFR_ACCESS_CYCLES
+from appsim.chip.mcu import FOSC_HZ, LOOK_COUNTING_PS, LOOK_FIRST_PS, PIC18F8680, SFR_ACCESS_CYCLES
 from appsim.chip.sfr import current_mcu
 from appsim.chip.usart import FIFO_DEPTH, PC_BAUD, decode
 from appsim.cli import build_parser
@@ -567,8 +567,8 @@ PER_SOURCE: dict[str, dict[str, Claim]] = {
     },
     "differences.md": {
         "200 ns": lambda ns: f"{SFR_ACCESS_CYCLES * 4 * 10**9 // FOSC_HZ} ns",     # the 2 cycles of one access
-        "1 ms": lambda ns: milli(Fraction(PROBE_FIRST_PS, PS_PER_SECOND)),
-        "8 ms": lambda ns: milli(Fraction(PROBE_COUNTING_PS, PS_PER_SECOND)),
+        "1 ms": lambda ns: milli(Fraction(LOOK_FIRST_PS, PS_PER_SECOND)),
+        "8 ms": lambda ns: milli(Fraction(LOOK_COUNTING_PS, PS_PER_SECOND)),
         "34 ms": lambda ns: milli(Fraction(timeout_ps(5000), PS_PER_SECOND)),
         "2 s": lambda ns: f"{WATCHDOG_SECONDS:g} s",
         "24 µs": lambda ns: micro(Fraction(acquiring_4_tad_at_fosc_64()[0], PS_PER_SECOND)),

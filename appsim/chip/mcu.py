@@ -20,8 +20,8 @@ from appsim.chip.ecan import registers as ecan_registers
 from appsim.chip.ecan.controller import ECAN
 from appsim.chip.interrupts import INTERRUPT_LATENCY_CYCLES, RETFIE_CYCLES, Interrupts
 from appsim.chip.polling import (
+    LOOK_PASSES,
     POLLING_SITES,
-    PROBE_PASSES,
     PollingLoop,
     firmware_entry,
     firmware_site,
@@ -60,9 +60,9 @@ class Peripheral(Protocol):
 
 
 READ_AHEAD_MAX_PS = 1 << 62           # a horizon with no event ahead
-PROBE_FIRST_PS = PS_PER_SECOND // 1000    # a loop parked this long is woken once, nothing changed, to see if it counts;
-PROBE_LAST_PS = PS_PER_SECOND             # each time it does not, the next look there comes twice as late, up to this
-PROBE_COUNTING_PS = 8 * PROBE_FIRST_PS     # and one that did comes again after this: a loop that counts turns on
+LOOK_FIRST_PS = PS_PER_SECOND // 1000   # a loop parked this long is woken once, nothing changed, to see if it counts;
+LOOK_LAST_PS = PS_PER_SECOND            # each time it does not, the next look there comes twice as late, up to this
+LOOK_COUNTING_PS = 8 * LOOK_FIRST_PS    # and one that did comes again after this: a loop that counts turns on
 
 
 def _reads_zero(address: int) -> int:
@@ -85,7 +85,7 @@ class ReadAhead(NamedTuple):
     seen: bytes
     sites: list[tuple[int, int]]
     after_writes: list[tuple[int, bytes]]
-    probed: bool
+    woken: bool
     judged: bool
 
 
@@ -94,8 +94,8 @@ class Parking:
     that tell whether it counts (`PIC18F8680._park_polling`): where it parked and since when, the look ahead, when each
     place is due to be looked at again, and what the last look saw."""
 
-    __slots__ = ("after", "event", "judged", "looked", "parked_at", "parked_on", "parked_since", "probed_read",
-                 "probing")
+    __slots__ = ("after", "event", "judged", "looked", "parked_at", "parked_on", "parked_since", "woken_read",
+                 "looking")
 
     def __init__(self) -> None:
         self.parked_on: dict[int, int] | None = None        # what a parked loop read (None: wake on any change)
@@ -103,9 +103,9 @@ class Parking:
         self.parked_since = 0
         self.event: Timer | None = None
         self.after: dict[tuple[int, int], int] = {}        # place -> how long after it parks there it is looked at
-        self.probing = False
+        self.looking = False
         self.looked: tuple[tuple[int, int], int] | None = None     # where a look woke the loop, and when
-        self.probed_read = False        # the read just done ended a park a look woke (the sandbox's loop judges)
+        self.woken_read = False        # the read just done ended a park a look woke (the sandbox's loop judges)
         self.judged = False             # the sandbox's read just done was a read again (the grader clears it before)
 
 
@@ -243,7 +243,7 @@ class PIC18F8680(SFRNames):
         if key not in sites:                    # PollingLoop.new_site, here: every polling loop's path
             if len(sites) < POLLING_SITES:
                 sites.add(key)
-            if loop.probe is not None:
+            if loop.look is not None:
                 loop.end_look()
             return
         if loop.from_known_place(address, place, judged=here) is not None:
@@ -252,35 +252,35 @@ class PIC18F8680(SFRNames):
         self._park_polling(process, key, here)
 
     def _park_polling(self, process: Process, parked_at: tuple[int, int], here: bool) -> None:
-        """Park a polling loop. One that stays parked PROBE_FIRST_PS is woken once with nothing changed that it reads
-        (`_probe`): the loop it is in may count after all, which its variables at its next read again tell
-        (`PollingLoop.probed`, here or in the sandbox). Each look at one place comes twice as late as the one before,
-        up to PROBE_LAST_PS; unless the loop ran on after the last look there for longer than PROBE_PASSES reads take
-        (it counts, or counted to its end): then the next comes after PROBE_COUNTING_PS. A loop that counts (a
-        timeout) so turns COUNTED_TURNS reads per change on the board, and as many every PROBE_COUNTING_PS at least: a
+        """Park a polling loop. One that stays parked LOOK_FIRST_PS is woken once with nothing changed that it reads
+        (`_look`): the loop it is in may count after all, which its variables at its next read again tell
+        (`PollingLoop.woken`, here or in the sandbox). Each look at one place comes twice as late as the one before,
+        up to LOOK_LAST_PS; unless the loop ran on after the last look there for longer than LOOK_PASSES reads take
+        (it counts, or counted to its end): then the next comes after LOOK_COUNTING_PS. A loop that counts (a
+        timeout) so turns COUNTED_TURNS reads per change on the board, and as many every LOOK_COUNTING_PS at least: a
         free-running counter costs about 128,000 reads a simulated second, not the chip's millions."""
         parking = self.parking
         if parking.looked is not None:
             looked_at, woke_at = parking.looked
             parking.looked = None
-            if process.local_time - woke_at > PROBE_PASSES * self.access_ps:
-                parking.after[looked_at] = PROBE_COUNTING_PS        # it turned on: more than a turn's reads
+            if process.local_time - woke_at > LOOK_PASSES * self.access_ps:
+                parking.after[looked_at] = LOOK_COUNTING_PS        # it turned on: more than a turn's reads
         parking.parked_at, parking.parked_since = parked_at, process.local_time
-        due = process.local_time + parking.after.get(parked_at, PROBE_FIRST_PS)
+        due = process.local_time + parking.after.get(parked_at, LOOK_FIRST_PS)
         event = parking.event
-        if event is None or event.time > due:       # one look ahead at a time; `_probe` puts it off if it may
+        if event is None or event.time > due:       # one look ahead at a time; `_look` puts it off if it may
             if event is not None:
                 event.cancel()
-            parking.event = self.sim.call_at(due, self._probe)
+            parking.event = self.sim.call_at(due, self._look)
         process.park()
         parking.parked_at = None
-        if parking.probing:
-            parking.probing = False
+        if parking.looking:
+            parking.looking = False
             if self.version == self._polled_version:        # nothing it reads changed since the look woke it
-                self.loop.probed(*parked_at, judged=here)
-                parking.probed_read = not here
+                self.loop.woken(*parked_at, judged=here)
+                parking.woken_read = not here
 
-    def _probe(self) -> None:
+    def _look(self) -> None:
         """Wake the parked polling loop to look whether it counts, if it is time: changes it does not read (Timer1
         overflowing) may have come meanwhile, and it reads as it did, so its places still hold."""
         parking = self.parking
@@ -288,19 +288,19 @@ class PIC18F8680(SFRNames):
         parked_at, process, parked_on = parking.parked_at, self.process, parking.parked_on
         if parked_at is None or process is None or not process.parked or parked_on is None:
             return
-        after = parking.after.get(parked_at, PROBE_FIRST_PS)
+        after = parking.after.get(parked_at, LOOK_FIRST_PS)
         due = parking.parked_since + after
         if due > self.sim.now:
-            parking.event = self.sim.call_at(due, self._probe)
+            parking.event = self.sim.call_at(due, self._look)
             return
         if len(parking.after) >= POLLING_SITES:
             parking.after.clear()
-        parking.after[parked_at] = min(2 * after, PROBE_LAST_PS)
+        parking.after[parked_at] = min(2 * after, LOOK_LAST_PS)
         if self.version != self._polled_version:
             self._polled_version = version = self.version
             for address in parked_on:
                 self._seen[address] = version
-        parking.probing = True
+        parking.looking = True
         parking.looked = parked_at, max(process.local_time, self.sim.now)
         process.wake()
 
@@ -331,7 +331,7 @@ class PIC18F8680(SFRNames):
         readers = self._offered_readers
         current = self._polled_version == version
         parking = self.parking
-        probed, parking.probed_read = parking.probed_read, False
+        woken, parking.woken_read = parking.woken_read, False
         judged, parking.judged = parking.judged, False
         values = [read(a) for a, read in readers]
         after_writes = []
@@ -342,7 +342,7 @@ class PIC18F8680(SFRNames):
                     self._offered_addresses, values, strict=True)])))
         return ReadAhead(min(int(budget), READ_AHEAD_MAX_PS) if budget > 0 else 0, current, self._offered_addresses,
                          bytes(values), bytes([seen.get(a) == version for a, _ in readers]),
-                         list(self.loop.sites) if current else [], after_writes, probed, judged)
+                         list(self.loop.sites) if current else [], after_writes, woken, judged)
 
     def write(self, address: int, value: int) -> None:
         """Write the register; an interrupt this write (or an event while it waited) makes pending is taken after it."""

@@ -14,11 +14,11 @@ from typing import Any
 POLLING_SITES = 1024        # (register, call site) a polling loop's reads are told apart by, at most, per change on the
                             # board: reads from further sites (a deep recursion's) never park
 COUNTED_TURNS = 1024        # reads again in a new state (a turn of CANIsRxReady() makes two) that loops that count may
-                            # make per change on the board, or per probe, as on the chip; then they park as polling does
-PROBE_PASSES = 64           # reads again elsewhere a probed loop may make on its way back to where it was woken
+                            # make per change on the board, or per look, as on the chip; then they park as polling does
+LOOK_PASSES = 64            # reads again elsewhere a looked-at loop may make on its way back to where it was woken
 FROZEN_DEPTH = 3            # lists in lists (a queue of frames, an array of structs) are compared this deep
 FROZEN_ITEMS = 256          # items of a list compared one by one, at most; a longer one by its length
-FROZEN_BUDGET = 4096        # items one look at the variables takes in, at most; the rest counts as unchanged
+FROZEN_BUDGET = 4096        # items one survey of the variables takes in, at most; the rest counts as unchanged
 FROZEN_FRAMES = 8           # the innermost firmware frames whose variables are looked at (the outer ones wait for them)
 
 
@@ -48,7 +48,7 @@ def firmware_site(depth: int = 2, *, variables: bool = False) -> int:
     than the rest of it."""
     frame: FrameType | None = sys._getframe(depth)
     kinds = _KINDS
-    site, frames, look = 0, FROZEN_FRAMES, _Look()
+    site, frames, survey = 0, FROZEN_FRAMES, _Survey()
     while frame is not None:
         code = frame.f_code
         kind = kinds.get(id(code))
@@ -58,7 +58,7 @@ def firmware_site(depth: int = 2, *, variables: bool = False) -> int:
             if not variables:
                 site = hash((site, id(code), frame.f_lasti))
             elif frames:
-                site = hash((site, id(code), frame_variables(frame, look)))
+                site = hash((site, id(code), frame_variables(frame, survey)))
                 frames -= 1
             else:
                 break
@@ -92,18 +92,18 @@ class PollingLoop:
     turn on, COUNTED_TURNS reads at most per change; with its variables as they were, it parks.
 
     Comparing variables costs more than a register read, so it is done only where a loop was seen counting. Whether a
-    loop that stays parked counts after all is found by a probe: the board wakes it with nothing changed (`probed`),
+    loop that stays parked counts after all is found by a look: the board wakes it with nothing changed (`woken`),
     and its variables when it is back at that read tell; a loop that leaves instead (its count ran out) counted."""
 
     def __init__(self) -> None:
         self.sites: set[tuple[int, int]] = set()        # (address, site) read again from since the last change
         self.counting: set[tuple[int, int]] = set()     # (address, site) where a loop was seen counting
         self.counted = 0                                 # reads again of counting loops since the last change
-        self.probe: _Probe | None = None                # a look in progress (`probed`); a new place ends it
+        self.look: _Look | None = None                  # a look in progress (`woken`); a new place ends it
 
     def changed(self) -> None:
         """The board changed: every place is new again."""
-        if self.probe is not None:
+        if self.look is not None:
             self.end_look()
         self.sites, self.counted = set(), 0
 
@@ -115,16 +115,16 @@ class PollingLoop:
             return False
         if len(sites) < POLLING_SITES:
             sites.add(site)
-        if self.probe is not None:
+        if self.look is not None:
             self.end_look()
         return True
 
     def end_look(self) -> None:
         """The look in progress ends with the loop elsewhere than where it was woken (a new place, a change on the
         board): it left the way it polled, its count run out. Where it was woken and the places it passed count."""
-        assert self.probe is not None
-        probe, self.probe = self.probe, None
-        self._count(probe.passed | {probe.at})
+        assert self.look is not None
+        look, self.look = self.look, None
+        self._count(look.passed | {look.at})
 
     def goes_on(self, address: int, place: int, *, judged: bool = True) -> int | None:
         """A read again of `address` from `place` (`firmware_site`) with nothing changed on the board since: the site
@@ -138,21 +138,21 @@ class PollingLoop:
     def from_known_place(self, address: int, place: int, *, judged: bool = True) -> int | None:
         """`goes_on` for a read again from a place the loop read again from since the change (the board calls this
         itself, after its own look at `sites`: it is every polling loop's path)."""
-        if self.probe is None and (not judged or (address, place) not in self.counting):
+        if self.look is None and (not judged or (address, place) not in self.counting):
             return None                         # a polling loop, as it mostly is
         here = (address, place)
-        probe = self.probe
-        if probe is not None:
-            if here != probe.at and probe.passes:   # on to where the probe woke it: it parks there, if it parks
-                probe.passes -= 1
-                probe.passed.add(here)
+        look = self.look
+        if look is not None:
+            if here != look.at and look.passes:   # on to where the look woke it: it parks there, if it parks
+                look.passes -= 1
+                look.passed.add(here)
                 return place
-            self.probe = None
-            if judged and here == probe.at:
-                if firmware_site(variables=True) == probe.variables:
+            self.look = None
+            if judged and here == look.at:
+                if firmware_site(variables=True) == look.variables:
                     self.counting.discard(here)     # it polls there after all
                     return None
-                self._count(probe.passed | {here})  # every place of the loop counts
+                self._count(look.passed | {here})  # every place of the loop counts
         return self._turn(address, place) if judged and here in self.counting else None
 
     def _count(self, places: set[tuple[int, int]]) -> None:
@@ -171,50 +171,50 @@ class PollingLoop:
         self.counted += 1
         return site
 
-    def mark(self) -> tuple[int, _Probe | None, set[tuple[int, int]]]:
+    def mark(self) -> tuple[int, _Look | None, set[tuple[int, int]]]:
         """What a read again may change here, to `restore` if it turns out to have been none (in the sandbox, the
         board may change before the read it asks for)."""
-        probe = self.probe
-        return self.counted, None if probe is None else probe.copy(), set(self.counting)
+        look = self.look
+        return self.counted, None if look is None else look.copy(), set(self.counting)
 
-    def restore(self, mark: tuple[int, _Probe | None, set[tuple[int, int]]]) -> None:
-        self.counted, self.probe, self.counting = mark
+    def restore(self, mark: tuple[int, _Look | None, set[tuple[int, int]]]) -> None:
+        self.counted, self.look, self.counting = mark
 
-    def probed(self, address: int, place: int, *, judged: bool = True) -> None:
+    def woken(self, address: int, place: int, *, judged: bool = True) -> None:
         """The loop parked at its read of `address` from `place` was woken with nothing changed, to see whether it
-        counts: it goes on to that place again (PROBE_PASSES reads again elsewhere at most), and its variables there
+        counts: it goes on to that place again (LOOK_PASSES reads again elsewhere at most), and its variables there
         are compared with those now. Until then that place counts: a loop that leaves it (its count ran out there)
         did. A loop that counts has turns again."""
-        self.probe = _Probe((address, place), firmware_site(variables=True) if judged else 0)
+        self.look = _Look((address, place), firmware_site(variables=True) if judged else 0)
         self.counted = 0
         if judged:
             self._count({(address, place)})
 
 
-class _Probe:
-    """Where a probe woke a parked loop (address, place), its variables then, and the places it passed since."""
+class _Look:
+    """Where a look woke a parked loop (address, place), its variables then, and the places it passed since."""
 
     __slots__ = ("at", "passed", "passes", "variables")
 
     def __init__(self, at: tuple[int, int], variables: int):
         self.at, self.variables = at, variables
         self.passed: set[tuple[int, int]] = set()
-        self.passes = PROBE_PASSES
+        self.passes = LOOK_PASSES
 
-    def copy(self) -> _Probe:
-        copy = _Probe(self.at, self.variables)
+    def copy(self) -> _Look:
+        copy = _Look(self.at, self.variables)
         copy.passed, copy.passes = set(self.passed), self.passes
         return copy
 
 
-def frame_variables(frame: FrameType, look: _Look) -> tuple[object, ...]:
+def frame_variables(frame: FrameType, survey: _Survey) -> tuple[object, ...]:
     """A firmware frame's variables, as values equal only when nothing in them changed: its locals, and the module
-    globals its code names that can change (`_frozen`, within what is left of the `look`)."""
+    globals its code names that can change (`_frozen`, within what is left of the `survey`)."""
     code, module = frame.f_code, frame.f_globals
     names = _DATA_GLOBALS.get(id(code))
     if names is None:
         names = _data_globals(module, code)
-    return tuple([_frozen(value, look) for value in (*frame.f_locals.values(),
+    return tuple([_frozen(value, survey) for value in (*frame.f_locals.values(),
                                                          *(dict.get(module, name) for name in names))])
 
 
@@ -266,8 +266,8 @@ def _stored_globals(code: CodeType) -> list[str]:
     return names
 
 
-class _Look:
-    """One look at a firmware's variables: how many items it may still take in, and the lists it took in already (a
+class _Survey:
+    """One survey of a firmware's variables: how many items it may still take in, and the lists it took in already (a
     list shared by many, `[[0] * 3000] * 3000`, is taken in once)."""
 
     __slots__ = ("left", "seen")
@@ -277,8 +277,8 @@ class _Look:
         self.seen: dict[int, object] = {}
 
 
-_UNSEEN = "(not looked at)"             # what is past a look's budget or depth: the same at every look
-_OTHER = "(compared by kind only)"      # any other object: the same at every look, whatever its identity
+_UNSEEN = "(not surveyed)"              # what is past a survey's budget or depth: the same every time
+_OTHER = "(compared by kind only)"      # any other object: the same every time, whatever its identity
 _NAN = "(NaN)"
 
 
@@ -290,19 +290,19 @@ def compared_by_slots(kind: type) -> None:
 _BY_SLOTS: dict[int, type] = {}         # by id, as _PLAIN
 
 
-def _frozen(value: Any, look: _Look, depth: int = 0) -> object:
+def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
     """`value` as something hashable that changes when its contents do, without running any of the firmware's own
     code (its __hash__, __iter__, properties, metaclass): the plain values as they are, a list (a C array, struct or
     variable whose address is taken, a queue) or a tuple (a CANMessage) by its items, the kit's own slotted types by
     their slots; any other object by its kind only, so that an object made again at each turn (a dict, a class's
-    instance, a generator) is no change, and the look is the same in every run."""
+    instance, a generator) is no change, and the survey is the same in every run."""
     kind = type(value)
     if id(kind) in _PLAIN:
         return _NAN if kind is float and value != value else value     # a NaN's hash is its identity's
-    if look.left <= 0 or depth >= FROZEN_DEPTH:
+    if survey.left <= 0 or depth >= FROZEN_DEPTH:
         return _UNSEEN
     if issubclass(kind, (list, tuple, bytearray)):
-        known = look.seen.get(id(value))
+        known = survey.seen.get(id(value))
         if known is not None:
             return known
         items = (list.copy(value) if issubclass(kind, list) else bytes(memoryview(value))
@@ -312,13 +312,13 @@ def _frozen(value: Any, look: _Look, depth: int = 0) -> object:
         elif issubclass(kind, bytearray):
             frozen = items
         else:
-            frozen = tuple([_frozen(item, look, depth + 1) for item in items])
-        look.left -= len(items) + 1
-        look.seen[id(value)] = frozen
+            frozen = tuple([_frozen(item, survey, depth + 1) for item in items])
+        survey.left -= len(items) + 1
+        survey.seen[id(value)] = frozen
         return frozen
     if issubclass(kind, int):           # an IntEnum's member, a flag
         return int.__index__(value)
     if id(kind) in _BY_SLOTS:
-        look.left -= 1
-        return tuple([_frozen(getattr(value, name, None), look, depth + 1) for name in kind.__slots__])
+        survey.left -= 1
+        return tuple([_frozen(getattr(value, name, None), survey, depth + 1) for name in kind.__slots__])
     return _OTHER

@@ -88,21 +88,21 @@ class RemoteMCU(SFRNames):
             reply = wire.LENGTH.pack(0) + self.answer()
             if reply[4:5] != wire.VALUE:
                 raise RuntimeError("the grader answered a register read with something else")
-        probed, again = self._read_ahead(reply[6:])
+        woken, again = self._read_ahead(reply[6:])
         if judged is not None and not again:
             self._loop.restore(judged)          # the board changed before the read: it was no read again after all
-        elif judged is None and again and not known and self._loop.probe is not None:
+        elif judged is None and again and not known and self._loop.look is not None:
             self._loop.end_look()               # a read again from a new place, as the board saw (PollingLoop.new_site)
-        if probed:
-            self._loop.probed(address, place)   # it parked, and was woken to see whether it counts
+        if woken:
+            self._loop.woken(address, place)   # it parked, and was woken to see whether it counts
         return reply[5]
 
     def _read_ahead(self, data: bytes) -> tuple[bool, bool]:
         """Take a read-ahead; whether the read it answers ended a park that a look woke, and was a read again."""
-        (self._left_ps, current, self._ahead, self._seen, sites, self._after, probed,
+        (self._left_ps, current, self._ahead, self._seen, sites, self._after, woken,
          again) = wire.decode_read_ahead(data)
         self._loop.sites, self._sites_current = sites, current
-        return probed, again
+        return woken, again
 
     def _served(self, address: int, place: int, value: int) -> int:
         self._left_ps -= self.access_ps

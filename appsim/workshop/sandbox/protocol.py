@@ -37,7 +37,7 @@ WRITE, SPEND, DELAY, SERVED, READ, DISPLAY = b"W", b"S", b"Y", b"r", b"R", b"D"
 WRITE_WAIT, SPEND_WAIT, DELAY_WAIT, IDLE, RETFIE = b"w", b"s", b"y", b"I", b"T"
 INITIAL, CURSOR, TEXT = 0, 1, 2
 # Grader to child: SOURCE name-length:u16 name source; GO access_ps:u64 tcy_ps:u64; VALUE value:u8 and a read-ahead
-# (READ_AHEAD: budget_ps:u64 flags:u8 (CURRENT, PROBED, JUDGED) entries:u16 sites:u16 writes:u8, then the entries'
+# (READ_AHEAD: budget_ps:u64 flags:u8 (CURRENT, WOKEN, JUDGED) entries:u16 sites:u16 writes:u8, then the entries'
 # addresses (u16 each), their values (u8 each) and whether each was seen (u8 each), then sites x (address:u16 site:i64),
 # then writes x (address:u16 and the entries' values after a write there, u8 each); see PIC18F8680.read_ahead); DONE
 # (display); ERROR + JSON [class, text]; GO_ON live:u8 and a read-ahead (a WRITE_WAIT, SPEND_WAIT or IDLE done); VECTOR
@@ -72,7 +72,7 @@ READ_AHEAD = struct.Struct("<QBHHB")
 # A read-ahead's flags: its sites are this change's; the read it answers ended a park that a look woke
 # (PIC18F8680._park_polling: does the loop count?); that read was a read again with nothing changed on the board
 # (PIC18F8680._read_again judged it), as the child took it to be, or else it undoes what it judged (PollingLoop.mark).
-CURRENT, PROBED, JUDGED = 1, 2, 4
+CURRENT, WOKEN, JUDGED = 1, 2, 4
 READ_AHEAD_SITE = struct.Struct("<Hq")
 WRITE_AHEAD = struct.Struct("<H")
 SPEND_ITEM = struct.Struct("<cQ")
@@ -299,9 +299,9 @@ def go_on_message(live: bool, read_ahead: bytes) -> bytes:
 
 
 def read_ahead_message(budget_ps: int, current: bool, addresses: tuple[int, ...], values: bytes, seen: bytes,
-                       sites: list[tuple[int, int]], after_writes: list[tuple[int, bytes]], probed: bool,
+                       sites: list[tuple[int, int]], after_writes: list[tuple[int, bytes]], woken: bool,
                        judged: bool) -> bytes:
-    flags = (CURRENT if current else 0) | (PROBED if probed else 0) | (JUDGED if judged else 0)
+    flags = (CURRENT if current else 0) | (WOKEN if woken else 0) | (JUDGED if judged else 0)
     return b"".join([READ_AHEAD.pack(budget_ps, flags, len(addresses), len(sites), len(after_writes)),
                      _addresses(len(addresses)).pack(*addresses), values, seen,
                      *(READ_AHEAD_SITE.pack(a, s) for a, s in sites),
@@ -311,7 +311,7 @@ def read_ahead_message(budget_ps: int, current: bool, addresses: tuple[int, ...]
 def decode_read_ahead(data: bytes) -> tuple[int, bool, dict[int, int], set[int], set[tuple[int, int]],
                                             dict[int, dict[int, int]], bool, bool]:
     """The child's side: budget, current, {address: value}, the addresses read since the last change, the sites,
-    {written address: {address: value}} after a write there, probed and judged."""
+    {written address: {address: value}} after a write there, woken and judged."""
     budget, flags, count, site_count, write_count = READ_AHEAD.unpack_from(data)
     position = READ_AHEAD.size
     addresses = _addresses(count).unpack_from(data, position)
@@ -327,7 +327,7 @@ def decode_read_ahead(data: bytes) -> tuple[int, bool, dict[int, int], set[int],
         position += WRITE_AHEAD.size
         after_writes[written] = dict(zip(addresses, data[position:position + count], strict=True))
         position += count
-    return (budget, bool(flags & CURRENT), values, seen, sites, after_writes, bool(flags & PROBED),
+    return (budget, bool(flags & CURRENT), values, seen, sites, after_writes, bool(flags & WOKEN),
             bool(flags & JUDGED))
 
 
