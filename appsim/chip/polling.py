@@ -126,18 +126,19 @@ class PollingLoop:
         look, self.look = self.look, None
         self._count(look.passed | {look.at})
 
-    def goes_on(self, address: int, place: int, *, judged: bool = True) -> int | None:
+    def goes_on(self, address: int, place: int) -> int | None:
         """A read again of `address` from `place` (`firmware_site`) with nothing changed on the board since: the site
         the read counts as if the loop turns on (a place new since the change; or a counting loop's place, with its
-        variables new there), None if it is a polling loop to park. Not `judged`: the firmware runs elsewhere (the
-        sandbox), which judges its variables itself and names a counting loop's read by a site new here."""
+        variables new there), None if it is a polling loop to park."""
         if self.new_site((address, place)):
             return place
-        return self.from_known_place(address, place, judged=judged)
+        return self.from_known_place(address, place)
 
     def from_known_place(self, address: int, place: int, *, judged: bool = True) -> int | None:
         """`goes_on` for a read again from a place the loop read again from since the change (the board calls this
-        itself, after its own look at `sites`: it is every polling loop's path)."""
+        itself, after its own look at `sites`: it is every polling loop's path). Not `judged`: the firmware runs
+        elsewhere (the sandbox), which judges its variables itself and names a counting loop's read by a site new
+        here."""
         if self.look is None and (not judged or (address, place) not in self.counting):
             return None                         # a polling loop, as it mostly is
         here = (address, place)

@@ -67,13 +67,15 @@ class RemoteMCU(SFRNames):
             self._seen.add(address)
             return self._served(address, 0, value)  # type: ignore[arg-type]  # offered: not None
         place = firmware_site()
-        judged = None
+        judged = None                           # what the loop was, if the board may yet say it was no read again
         known = (address, place) in self._loop.sites
-        if (ahead is not None and address in self._seen) or known:
+        again_here = (ahead is not None and address in self._seen) or known
+        if again_here:
             if not self._sites_current:         # a read again: PIC18F8680._read_again's rule, judged here
                 self._loop.changed()
                 self._sites_current = True
-            judged = self._loop.mark()
+            if not offered:                     # (one it offers, within its budget, is one for certain)
+                judged = self._loop.mark()
             turned_on = self._loop.goes_on(address, place)
             if turned_on is not None:           # it turns on: a read that cannot park, at a site new to the board
                 if offered:
@@ -91,7 +93,7 @@ class RemoteMCU(SFRNames):
         woken, again = self._read_ahead(reply[6:])
         if judged is not None and not again:
             self._loop.restore(judged)          # the board changed before the read: it was no read again after all
-        elif judged is None and again and not known and self._loop.look is not None:
+        elif not again_here and again and not known and self._loop.look is not None:
             self._loop.end_look()               # a read again from a new place, as the board saw (PollingLoop.new_site)
         if woken:
             self._loop.woken(address, place)   # it parked, and was woken to see whether it counts
