@@ -39,6 +39,27 @@ def test_a_stray_hash_in_the_code_is_refused_and_never_moves_the_line_count(sour
     assert refused.line == line and "a stray '#'" in str(refused)
 
 
+@pytest.mark.parametrize("source, words, line", [
+    ("#if 1\nint a;\n#else\nint a;\n#elif 1\nint b;\n#endif\n", "#elif after the #else of line 3", 5),
+    ("#ifdef X\nint a;\n#else\n#else\n#endif\n", "#else after the #else of line 3", 4),
+    ("#if 1\n#ifdef X\n#else\n#endif\n#else\n#else\n#endif\n", "#else after the #else of line 5", 6),
+    ("int a;\n#endif\n", "#endif with no #if before it", 2),
+    ("int a;\n#else\n", "#else with no #if before it", 2),
+    ("#ifndef X\nint a;\n", "this #ifndef has no #endif", 1),
+    ("#if 1\n#ifdef X\n#endif\n#ifdef Y\nint a;\n", "its group (2 groups are open at the end)", 4),
+], ids=["elif after else", "else after else", "nested", "endif alone", "else alone", "no endif", "two open"])
+def test_if_groups_that_do_not_pair_up_are_refused_at_their_line(source, words, line):
+    """C18's preprocessor refuses each of these; pcpp took an #elif or an #else after the #else (the file compiled
+    in the kit and not in MPLAB) and told the rest as 'Misplaced #endif (the preprocessor)'."""
+    refused = _refusal(source + MAIN)
+    assert words in str(refused) and refused.line == line, refused
+
+
+def test_directives_in_comments_and_strings_are_no_directives():
+    c18.translate("ex1.c", b'#if 1\n/*\n#else\n#endif\n*/\nrom char s[] = "\\n#endif";\n// #else\nint a;\n'
+                  b"#else\nint a;\n#endif\n" + MAIN.encode(), {}, ())
+
+
 def test_a_hash_in_a_string_and_a_pragma_are_no_stray_hash():
     c18.translate("ex1.c", b'#pragma config WDT = OFF\nrom char s[] = "a#b";\nchar c = \'#\';\n' + MAIN.encode(),
                   {}, ())

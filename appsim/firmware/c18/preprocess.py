@@ -418,8 +418,46 @@ def _token(lexer: Any, kind: str, value: str, lineno: int, lexpos: int, source: 
     return token
 
 
+_CONDITIONAL = re.compile(r'"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|/\*.*?\*/|//[^\n]*|'
+                          r"\n[ \t\f\v]*#[ \t\f\v]*(if|ifdef|ifndef|elif|else|endif)\b", re.DOTALL)
+
+
+def check_conditionals(text: str, filename: str) -> None:
+    """Refuse a file whose #if ... #endif groups do not pair up, each case in its own words at its line (pcpp takes
+    an #elif or an #else after the #else, and tells the rest in words of its own); comments and strings are not
+    read for directives."""
+    line, counted = 1, 0
+    groups: list[tuple[str, int, int]] = []         # each open group: its #if, #ifdef or #ifndef, its line, its #else's
+    for found in _CONDITIONAL.finditer("\n" + text):
+        directive = found.group(1)
+        if directive is None:
+            continue
+        line += text.count("\n", counted, found.start())
+        counted = found.start()
+        if directive.startswith("if"):
+            groups.append((directive, line, 0))
+        elif not groups:
+            raise CCompileError(f"#{directive} with no #if before it: #else, #elif and #endif each belong to an "
+                                "#if, #ifdef or #ifndef above them (one too many, or its #if deleted?)", filename, line)
+        elif directive == "endif":
+            groups.pop()
+        elif groups[-1][2]:
+            opened, at, else_at = groups[-1]
+            raise CCompileError(f"#{directive} after the #else of line {else_at}: the #else is the last choice of the "
+                                f"#{opened} at line {at}; put every #elif before it, and one #else at most (or close "
+                                "the group with #endif first)", filename, line)
+        elif directive == "else":
+            groups[-1] = (groups[-1][0], groups[-1][1], line)
+    if groups:
+        opened, at, _ = groups[-1]
+        more = f" ({len(groups)} groups are open at the end)" if len(groups) > 1 else ""
+        raise CCompileError(f"this #{opened} has no #endif: each #if, #ifdef and #ifndef needs an #endif that ends "
+                            f"its group{more}", filename, at)
+
+
 def preprocess(text: str, filename: str, locked: Mapping[str, int], deadline: float) -> Preprocessed:
     """The file's text preprocessed, with the -D names `locked` to their values."""
+    check_conditionals(text, filename)
     walled = _Walled(filename, deadline, locked)
     walled.parse(text, filename)
     out = io.StringIO()
