@@ -2,6 +2,7 @@
 a hard-coded answer fails on another seed, and a firmware that cannot be judged gets zero with a clear message."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -105,6 +106,25 @@ def zero_with(verdict: Verdict, *words: str) -> None:
     for word in words:
         assert word in verdict.checks[0].message, verdict.checks[0].message
     assert all(c.message.startswith("Not judged") for c in verdict.checks[1:])
+
+
+def test_a_firmware_written_with_a_dataclass_and_an_enum_loads_in_check_and_in_the_sandbox(tmp_path):
+    """Both look their class's module up while the file's top runs: the loader did not list the firmware's module
+    among Python's, so the file failed "while loading, before main() ran" with an AttributeError of dataclasses."""
+    from appsim.workshop.grading.worker import grade_exercise
+    from appsim.workshop.sandbox.children import Limits, Sandbox
+    from appsim.workshop.sandbox.isolation import isolation
+
+    path = copy_with(tmp_path, "ex2", "TxData = [0x01, 0x02, 0x03, 0x00, 0x00]\n",
+                     "import dataclasses\nimport enum\n\n\n@dataclasses.dataclass\nclass Frame:\n"
+                     "    data: list[int]\n\n\nclass Kind(enum.Enum):\n    DATA = 1\n\n\n"
+                     "TxData = Frame([0x01, 0x02, 0x03, 0x00, 0x00]).data if Kind.DATA.value else []\n")
+    verdict = check("ex2", path, seed=1).to_dict()
+    assert verdict["score"] == verdict["max_score"], verdict
+    with Sandbox(isolation(), Limits()) as sandbox:
+        record = grade_exercise(sandbox, "ex2", "ex2.py", path.read_bytes(), 1, None, owner="ada")
+    assert (record["score"], record["fault"]) == (verdict["score"], None), record
+    assert not any(name.startswith("firmware_") for name in sys.modules), "the module was let go"
 
 
 def test_a_crash_gives_zero_with_the_error_and_the_line(tmp_path):

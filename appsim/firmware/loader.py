@@ -73,6 +73,7 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
     module = ModuleType(f"firmware_{path.stem}_{next(_loads)}")
     module.__file__ = str(path)
     vars(module)[IDLE] = idle
+    sys.modules[module.__name__] = module   # while its top runs: @dataclass, enum and typing look their module up
     try:
         exec(code, vars(module))
     except Exception as error:
@@ -84,6 +85,9 @@ def load_source(path: str | Path, source: bytes, defines: Mapping[str, int] | No
         raise FirmwareError(f"{path.name} failed while loading, before main() ran: {what}{end} Only constants and "
                             f"functions belong at the top of the file; CAN and LCD calls go inside main().{where}"
                             ) from error
+    finally:
+        if sys.modules.get(module.__name__) is module:
+            del sys.modules[module.__name__]
     if not callable(getattr(module, "main", None)):
         raise FirmwareError(f"{path.name} has no main(): a firmware file defines `def main():` that loops "
                             "forever, as main() does in EX1.C")
