@@ -86,6 +86,58 @@ def test_a_c_timeout_loop_times_out_when_no_frame_comes(tmp_path):
     assert _lcd_after(tmp_path, "timeout.c", TIMEOUT_C)[0].startswith("TIMEOUT")
 
 
+# A count kept where C keeps none: in a dict's value, an object's attribute (its class the firmware's own, a dataclass),
+# local or global. Each loop reads ADRESH 50 times over, and then writes AFTER: within 10 ms if it counts, where one
+# that parks turns once at each look (after 1, 2, 4 ... ms).
+KEPT_COUNTS = {
+    "a local dict's value": ("state = {'k': 0}", "state['k'] < 50", "state['k'] += 1"),
+    "a global dict's value": ("STATE['k'] = 0", "STATE['k'] < 50", "STATE['k'] += 1"),
+    "a local object's attribute": ("state = Counter()", "state.k < 50", "state.k += 1"),
+    "a global object's attribute": ("COUNTER.k = 0", "COUNTER.k < 50", "COUNTER.k += 1"),
+    "a dataclass's field": ("state = Kept()", "state.k < 50", "state.k += 1"),
+    "an attribute two objects deep": ("state = Counter(); state.inner = Counter()", "state.inner.k < 50",
+                                      "state.inner.k += 1"),
+}
+KEPT_COUNT = """from dataclasses import dataclass
+
+from appsim.firmware import *
+
+
+class Counter:
+    def __init__(self):
+        self.k = 0
+
+
+@dataclass
+class Kept:
+    k: int = 0
+
+
+STATE = {{}}
+COUNTER = Counter()
+
+
+def main():
+    GLCD_Initial()
+    {start}
+    while {test}:
+        x = SFR.ADRESH
+        {step}
+    setcurGLCD(1, 1)
+    putrsGLCD("AFTER")
+    while True:
+        CANIsRxReady()
+"""
+
+
+@pytest.mark.parametrize("name", sorted(KEPT_COUNTS))
+def test_a_count_kept_in_a_dict_or_an_objects_attribute_is_seen(tmp_path, name):
+    """Such a loop parked for ever: the kit compared dicts and objects by their kind only, so it saw no change."""
+    start, test, step = KEPT_COUNTS[name]
+    source = KEPT_COUNT.format(start=start, test=test, step=step)
+    assert _lcd_after(tmp_path, "kept.py", source, 0.01)[0].startswith("AFTER")
+
+
 def test_a_counting_loop_is_found_while_changes_it_does_not_read_keep_coming(tmp_path):
     """Timer1 overflows (after 25.6 us, then every 6.5 ms) and sets TMR1IF: a change on the board, but not one the
     loop reads, so it stays parked, and its first look comes as if nothing had changed: 1 ms after it parked, so it
@@ -176,6 +228,14 @@ COUNTING_EX2 = {
         "            PIR1bits.TMR1IF = 0\n",
         "            PIR1bits.TMR1IF = 0\n            waited = 0\n"
         "            while waited < 700 and not CANIsRxReady():\n                waited += 1\n"),
+    "a timeout of 700 turns counted in a dict's value": (
+        "            PIR1bits.TMR1IF = 0\n",
+        "            PIR1bits.TMR1IF = 0\n            waited = {'turns': 0}\n"
+        "            while waited['turns'] < 700 and not CANIsRxReady():\n                waited['turns'] += 1\n"),
+    "a timeout of 700 turns counted in an object's attribute": (
+        "            PIR1bits.TMR1IF = 0\n",
+        "            PIR1bits.TMR1IF = 0\n            waited = type('Waited', (), {'turns': 0})()\n"
+        "            while waited.turns < 700 and not CANIsRxReady():\n                waited.turns += 1\n"),
     "the A/D value read three times over": (
         "    TxData[3] = SFR.ADRESH\n", "    for _ in range(3):\n        TxData[3] = SFR.ADRESH\n"),
     # more registers than a read-ahead offers (16): the child judges the others by the places the board sends it
@@ -278,9 +338,48 @@ class Odd(metaclass=Meta):
     pass
 
 
+class OwnDict:
+    @property
+    def __dict__(self):
+        ran.append("__dict__ property")
+        raise RuntimeError("__dict__")
+
+
+class Key(str):
+    def __hash__(self):
+        ran.append("key __hash__")
+        return str.__hash__(self)
+
+    def __eq__(self, other):            # it records, and answers: type() compares the keys while it makes Keyed
+        ran.append("key __eq__")
+        return str.__eq__(self, other)
+
+
+class Items(dict):
+    def items(self):
+        ran.append("items")
+        raise RuntimeError("items")
+
+    def __iter__(self):
+        ran.append("dict __iter__")
+        raise RuntimeError("__iter__")
+
+
+class Holder:
+    def __getattribute__(self, name):
+        ran.append("holder __getattribute__")
+        raise RuntimeError(name)
+
+
+Keyed = type("Keyed", (), {Key("__module__"): "x", Key("__dict__"): 1, Key("count"): 0})
+
+
 def main():
     GLCD_Initial()
     evil, slotted, odd, k = Evil([1, 2]), Slotted(), Odd(), 0
+    own, keyed, items, holder = OwnDict(), Keyed(), Items({Key("a"): Evil([4])}), Holder()
+    object.__setattr__(holder, "evil", Evil([3]))
+    ran.clear()
     while k < 5:
         k += 1
         x = SFR.ADRESH

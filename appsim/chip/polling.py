@@ -8,7 +8,7 @@ from __future__ import annotations
 import opcode
 import sys
 from collections.abc import Callable
-from types import CodeType, FrameType, FunctionType
+from types import CodeType, FrameType, FunctionType, GetSetDescriptorType
 from typing import Any
 
 POLLING_SITES = 1024        # (register, call site) a polling loop's reads are told apart by, at most, per change on the
@@ -81,6 +81,7 @@ def forget_firmware_code() -> None:
     """Empty the caches behind `firmware_site` (new firmware brings new code objects)."""
     _KINDS.clear()
     _DATA_GLOBALS.clear()
+    _INSTANCE_DICTS.clear()
     _ASSIGNED.clear()
     _KEPT.clear()
 
@@ -227,13 +228,18 @@ _EXTENDED_ARG = opcode.opmap["EXTENDED_ARG"]
 
 def _data_globals(module: dict[str, Any], code: CodeType) -> tuple[str, ...]:
     """The module globals `code` names that can change: one a function of the module assigns (a global counter), or a
-    list, an array it fills."""
+    list, an array it fills, a dict or an object of the firmware's own class whose values it changes."""
     assigned = _assigned_globals(module)
     names = _DATA_GLOBALS[id(code)] = tuple(
         name for name in code.co_names if dict.__contains__(module, name)
-        and (name in assigned or issubclass(type(dict.__getitem__(module, name)), (list, bytearray))))
+        and (name in assigned or _container(dict.__getitem__(module, name))))
     _KEPT.append(code)
     return names
+
+
+def _container(value: object) -> bool:
+    kind = type(value)
+    return issubclass(kind, (list, bytearray, dict)) or _attributes(value, kind) is not None
 
 
 def _assigned_globals(module: dict[str, Any]) -> frozenset[str]:
@@ -322,4 +328,59 @@ def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
     if id(kind) in _BY_SLOTS:
         survey.left -= 1
         return tuple([_frozen(getattr(value, name, None), survey, depth + 1) for name in kind.__slots__])
-    return _OTHER
+    entries = dict.items(value) if issubclass(kind, dict) else _attributes(value, kind)
+    if entries is None:
+        return _OTHER
+    known = survey.seen.get(id(value))
+    if known is not None:
+        return known
+    pairs = list(entries)
+    if len(pairs) > FROZEN_ITEMS:
+        frozen = (_UNSEEN, len(pairs))
+    else:
+        frozen = tuple([(_frozen(key, survey, depth + 1), _frozen(item, survey, depth + 1)) for key, item in pairs])
+    survey.left -= len(pairs) + 1
+    survey.seen[id(value)] = frozen
+    return frozen
+
+
+def _attributes(value: object, kind: type) -> Any:
+    """The attributes of an object of a class of the firmware's own (`self.count`, a dataclass's fields), as
+    dict.items, read without running any of its code; None for any other object (the kit's, Python's, one of a
+    class with a metaclass or a __dict__ of its own)."""
+    descriptor = _INSTANCE_DICTS.get(id(kind))
+    if descriptor is None and id(kind) not in _INSTANCE_DICTS:
+        descriptor = _INSTANCE_DICTS[id(kind)] = _instance_dict(kind)
+        _KEPT.append(kind)
+    if descriptor is None:
+        return None
+    try:
+        attributes = descriptor.__get__(value, kind)
+    except TypeError:                   # the __dict__ of another class
+        return None
+    return dict.items(attributes) if type(attributes) is dict else None
+
+
+def _instance_dict(kind: type) -> GetSetDescriptorType | None:
+    """What gives the objects of `kind` their attributes, if it is a class of the firmware's own (a class statement
+    outside the kit, no metaclass) whose objects have the __dict__ Python gives them. The class's namespace is read
+    item by item, so that no key of its own is compared (its __eq__ would run)."""
+    if type(kind) is not type or not kind.__flags__ & _HEAP_TYPE:
+        return None                     # (its metaclass is type: the class is read as type reads it)
+    module = descriptor = None
+    for each in kind.__mro__:
+        for key, item in each.__dict__.items():
+            if type(key) is str:
+                if module is None and each is kind and str.__eq__(key, "__module__"):
+                    module = item
+                elif descriptor is None and str.__eq__(key, "__dict__"):
+                    descriptor = item
+        if descriptor is not None:
+            break
+    if type(module) is not str or str.startswith(module, "appsim.") or type(descriptor) is not GetSetDescriptorType:
+        return None
+    return descriptor
+
+
+_INSTANCE_DICTS: dict[int, GetSetDescriptorType | None] = {}   # id(class) -> `_instance_dict`
+_HEAP_TYPE = 1 << 9                     # Py_TPFLAGS_HEAPTYPE: a class made by a class statement (or type())
