@@ -20,6 +20,7 @@ FROZEN_DEPTH = 3            # lists in lists (a queue of frames, an array of str
 FROZEN_ITEMS = 256          # items of a list compared one by one, at most; a longer one by its length
 FROZEN_BUDGET = 4096        # items one survey of the variables takes in, at most; the rest counts as unchanged
 FROZEN_FRAMES = 8           # the innermost firmware frames whose variables are looked at (the outer ones wait for them)
+CLASSES_KEPT = 256          # classes whose objects' attributes the looks know how to read, kept (the rest read anew)
 
 
 # id(code object) -> FIRMWARE, KIT or ENTRY; id(code object) -> the names of data it reads from its module; id(module
@@ -350,8 +351,10 @@ def _attributes(value: object, kind: type) -> Any:
     class with a metaclass or a __dict__ of its own)."""
     descriptor = _INSTANCE_DICTS.get(id(kind))
     if descriptor is None and id(kind) not in _INSTANCE_DICTS:
-        descriptor = _INSTANCE_DICTS[id(kind)] = _instance_dict(kind)
-        _KEPT.append(kind)
+        descriptor = _instance_dict(kind)
+        if len(_INSTANCE_DICTS) < CLASSES_KEPT:     # a firmware that makes a class at each turn: read each anew
+            _INSTANCE_DICTS[id(kind)] = descriptor
+            _KEPT.append(kind)
     if descriptor is None:
         return None
     try:
