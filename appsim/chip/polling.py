@@ -20,7 +20,7 @@ FROZEN_DEPTH = 3            # lists in lists (a queue of frames, an array of str
 FROZEN_ITEMS = 256          # items of a list compared one by one, at most; a longer one by its length
 FROZEN_BUDGET = 4096        # items one survey of the variables takes in, at most; the rest counts as unchanged
 FROZEN_FRAMES = 8           # the innermost firmware frames whose variables are looked at (the outer ones wait for them)
-CLASSES_KEPT = 256          # classes whose objects' attributes the looks know how to read, kept (the rest read anew)
+KEPT_MOST = 4096            # code objects, modules and classes the tables below remember (the rest are read anew)
 
 
 # id(code object) -> FIRMWARE, KIT or ENTRY; id(code object) -> the names of data it reads from its module; id(module
@@ -73,9 +73,16 @@ def _kind(frame: FrameType, code: CodeType) -> int:
     """Whether `code` is the firmware's, the kit's, or what calls a firmware's main(); kept for its next time."""
     name = dict.get(frame.f_globals, "__name__")        # (not .get, .startswith: a firmware's own may run)
     kit = type(name) is str and str.startswith(name, "appsim.")
-    kind = _KINDS[id(code)] = ENTRY if code in _ENTRIES else KIT if kit else FIRMWARE
-    _KEPT.append(code)
-    return kind
+    return _remember(_KINDS, code, ENTRY if code in _ENTRIES else KIT if kit else FIRMWARE)
+
+
+def _remember(table: dict[int, Any], owner: object, value: Any) -> Any:
+    """`value` kept in `table` for `owner`, and `owner` kept alive so that its id stays its own; as long as the tables
+    hold fewer than KEPT_MOST owners (a firmware that makes code or classes at each turn has them read anew)."""
+    if len(_KEPT) < KEPT_MOST:
+        table[id(owner)] = value
+        _KEPT.append(owner)
+    return value
 
 
 def forget_firmware_code() -> None:
@@ -231,11 +238,9 @@ def _data_globals(module: dict[str, Any], code: CodeType) -> tuple[str, ...]:
     """The module globals `code` names that can change: one a function of the module assigns (a global counter), or a
     list, an array it fills, a dict or an object of the firmware's own class whose values it changes."""
     assigned = _assigned_globals(module)
-    names = _DATA_GLOBALS[id(code)] = tuple(
+    return _remember(_DATA_GLOBALS, code, tuple(
         name for name in code.co_names if dict.__contains__(module, name)
-        and (name in assigned or _container(dict.__getitem__(module, name))))
-    _KEPT.append(code)
-    return names
+        and (name in assigned or _container(dict.__getitem__(module, name)))))
 
 
 def _container(value: object) -> bool:
@@ -254,8 +259,7 @@ def _assigned_globals(module: dict[str, Any]) -> frozenset[str]:
             each = codes.pop()
             names.update(_stored_globals(each))
             codes += [const for const in each.co_consts if isinstance(const, CodeType)]
-        found = _ASSIGNED[id(module)] = frozenset(names)
-        _KEPT.append(module)
+        found = _remember(_ASSIGNED, module, frozenset(names))
     return found
 
 
@@ -351,10 +355,7 @@ def _attributes(value: object, kind: type) -> Any:
     class with a metaclass or a __dict__ of its own)."""
     descriptor = _INSTANCE_DICTS.get(id(kind))
     if descriptor is None and id(kind) not in _INSTANCE_DICTS:
-        descriptor = _instance_dict(kind)
-        if len(_INSTANCE_DICTS) < CLASSES_KEPT:     # a firmware that makes a class at each turn: read each anew
-            _INSTANCE_DICTS[id(kind)] = descriptor
-            _KEPT.append(kind)
+        descriptor = _remember(_INSTANCE_DICTS, kind, _instance_dict(kind))
     if descriptor is None:
         return None
     try:
