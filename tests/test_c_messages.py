@@ -55,9 +55,11 @@ def test_if_groups_that_do_not_pair_up_are_refused_at_their_line(source, words, 
     assert words in str(refused) and refused.line == line, refused
 
 
-def test_directives_in_comments_and_strings_are_no_directives():
-    c18.translate("ex1.c", b'#if 1\n/*\n#else\n#endif\n*/\nrom char s[] = "\\n#endif";\n// #else\nint a;\n'
-                  b"#else\nint a;\n#endif\n" + MAIN.encode(), {}, ())
+@pytest.mark.parametrize("newline", ["\n", "\r\n"], ids=["LF", "CRLF"])
+def test_directives_in_comments_strings_and_continued_lines_are_no_directives(newline):
+    source = ('#if 1\n/*\n#else\n#endif\n*/\nrom char s[] = "\\n#endif";\n// #else\nint a;\n#else\nint a;\n#endif\n'
+              "#define JOINED 1 \\\n#endif\n" + MAIN)
+    c18.translate("ex1.c", source.replace("\n", newline).encode(), {}, ())
 
 
 def test_a_hash_in_a_string_and_a_pragma_are_no_stray_hash():

@@ -419,13 +419,13 @@ def _token(lexer: Any, kind: str, value: str, lineno: int, lexpos: int, source: 
 
 
 _CONDITIONAL = re.compile(r'"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|/\*.*?\*/|//[^\n]*|'
-                          r"\n[ \t\f\v]*#[ \t\f\v]*(if|ifdef|ifndef|elif|else|endif)\b", re.DOTALL)
+                          r"(?<!\\)(?<!\\\r)\n[ \t\f\v]*#[ \t\f\v]*(if|ifdef|ifndef|elif|else|endif)\b", re.DOTALL)
 
 
 def check_conditionals(text: str, filename: str) -> None:
     """Refuse a file whose #if ... #endif groups do not pair up, each case in its own words at its line (pcpp takes
-    an #elif or an #else after the #else, and tells the rest in words of its own); comments and strings are not
-    read for directives."""
+    an #elif or an #else after the #else, and tells the rest in words of its own); comments, strings and a line
+    continued from the one before (`\\` at its end) are not read for directives."""
     line, counted = 1, 0
     groups: list[tuple[str, int, int]] = []         # each open group: its #if, #ifdef or #ifndef, its line, its #else's
     for found in _CONDITIONAL.finditer("\n" + text):
