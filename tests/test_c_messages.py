@@ -2,6 +2,7 @@
 takes means what C18 makes of it (found by fuzzing the translator and by trying the CLI as students would)."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -113,6 +114,42 @@ def _startup_and_main(module, names: list[str]) -> str:
     world.node("n", module.main)
     world.run(0.001)
     return ", ".join(f"{name} = {vars(module)[name]}" for name in names)
+
+
+SHADOWING = {
+    "a function's local": ("int x = 5;\nvoid f(void) { int x = 7; x++; }\n", "f();", "x = 5"),
+    "a block's local in main": ("int x = 5;\n", "{ int x = 7; x++; }", "x = 5"),
+    "a loop counter": ("unsigned char i = 100;\nvoid f(void) { unsigned char i; for (i = 0; i < 3; i++) ; }\n",
+                       "f();", "i = 100"),
+    "a local array": ("unsigned char buf[2] = {1, 2};\nvoid f(void) { unsigned char buf[2]; buf[0] = 9; }\n",
+                      "f();", "buf = [1, 2]"),
+    "a parameter": ("int x = 5, r;\nint twice(int x) { x = x * 2; return x; }\n", "r = twice(21);",
+                    "x = 5, r = 42"),
+    "a local, then the global": ("int x = 5, r;\nvoid f(void) { { int x = 7; } x = x + 1; }\n", "f(); r = x;",
+                                 "x = 6, r = 6"),
+}
+
+
+@pytest.mark.parametrize("options, expected", [((), "r = 1, s = -92"), (("-Oi",), "r = 0, s = 65444")])
+def test_signedness_and_constants_are_as_the_dialect_table_says(options, expected):
+    """docs/c-firmware.md: a signed and an unsigned char make an unsigned operation (C18's default), ISO's promotions
+    make both int (-Oi); `8u` is an unsigned char (C18's smallest type: 8u - c is done in c's int), with -Oi an
+    unsigned int (8u - c is unsigned)."""
+    source = ("signed char b = -1; int c = 100; unsigned char r; long s;\n"
+              "void main(void) { r = (b == 0xFF); s = 8u - c; while (1) CANIsRxReady(); }\n")
+    module = c18.load(Path("sign.c"), ('#include "CAN18XX8.h"\n' + source).encode(), None, options)
+    assert _startup_and_main(module, ["r", "s"]) == expected
+
+
+@pytest.mark.parametrize("name", sorted(SHADOWING))
+def test_a_local_with_a_globals_name_is_a_variable_of_its_own(name):
+    """In C the inner declaration hides the global; the translation made them one Python name, declared global in
+    the function (the global became 7, 8, 3, [9, 0]), and refused a parameter as 'parameter and global'."""
+    declarations, calls, expected = SHADOWING[name]
+    source = declarations + f"void main(void) {{ {calls} while (1) CANIsRxReady(); }}\n"
+    module = c18.load(Path("shadow.c"), ('#include "CAN18XX8.h"\n' + source).encode(), None, ())
+    names = re.findall(r"(\w+) = ", expected)
+    assert _startup_and_main(module, names) == expected
 
 
 @pytest.mark.parametrize("literal", ["'\\x41BC'", '"\\777"', "'\\x'"])

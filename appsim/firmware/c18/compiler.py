@@ -195,12 +195,14 @@ class Translator:
 
     def py_name(self, name: str) -> str:
         """The Python name of a C identifier: itself, unless Python or the translation uses it (a C name with two
-        leading underscores is the implementation's, in C as here)."""
+        leading underscores is the implementation's, in C as here). A function's parameter or local gets a name of its
+        own, apart from the function's other locals and from the globals: in C it hides a global of its name, where
+        one Python name would be the global (the function declares every global it assigns `global`)."""
         base = name if name not in _PY_RESERVED and not name.startswith("__") else f"{name}_"
         if self.function is None:
             return base
         candidate, n = base, 1
-        while candidate in self.locals_used:
+        while candidate in self.locals_used or candidate in self.globals:
             n += 1
             candidate = f"{base}__{n}"
         self.locals_used.add(candidate)
