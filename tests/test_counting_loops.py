@@ -97,6 +97,7 @@ KEPT_COUNTS = {
     "a dataclass's field": ("state = Kept()", "state.k < 50", "state.k += 1"),
     "an attribute two objects deep": ("state = Counter(); state.inner = Counter()", "state.inner.k < 50",
                                       "state.inner.k += 1"),
+    "a class's attribute": ("State.k = 0", "State.k < 50", "State.k += 1"),
 }
 KEPT_COUNT = """from dataclasses import dataclass
 
@@ -111,6 +112,10 @@ class Counter:
 @dataclass
 class Kept:
     k: int = 0
+
+
+class State:
+    k = 0
 
 
 STATE = {{}}
@@ -386,10 +391,25 @@ class Holder:
 Keyed = type("Keyed", (), {Key("__module__"): "x", Key("__dict__"): 1, Key("count"): 0})
 
 
+class Spy:
+    def __getattr__(self, name):
+        ran.append("spy " + name)
+        raise AttributeError(name)
+
+
+class Probe(property):              # a C descriptor that calls Python, where the kit looks for __dict__
+    __dict__ = property.__dict__["__isabstractmethod__"]
+
+
+class Borrowed:                     # another class's C descriptor as its __dict__
+    __dict__ = type.__dict__["__doc__"]
+
+
 def main():
     GLCD_Initial()
     evil, slotted, odd, k = Evil([1, 2]), Slotted(), Odd(), 0
     own, keyed, items, holder = OwnDict(), Keyed(), Items({Key("a"): Evil([4])}), Holder()
+    probe, borrowed = Probe(Spy()), Borrowed()
     object.__setattr__(holder, "evil", Evil([3]))
     ran.clear()
     while k < 5:
@@ -400,6 +420,43 @@ def main():
     while True:
         CANIsRxReady()
 """
+
+
+# The Ex2 solution with its main loop's turns counted where the looks do not see them (itertools.count) and sent in
+# TxData[0]: a polling loop that turns more than the plain one shows on the bus.
+TURNS_EX2 = EX2.replace(
+    "from appsim.firmware import *\n",
+    "import itertools\n\nfrom appsim.chip.sfr import current_mcu\nfrom appsim.firmware import *\n").replace(
+    "    while True:\n", "    turns = itertools.count()\n    while True:\n        next(turns)\n", 1).replace(
+    "            read_potentiometer()\n",
+    "            read_potentiometer()\n            TxData[0] = min(next(turns) // 16, 255)\n", 1)
+POLLING_WITH = {
+    "a complex NaN made at each turn": "        reading = {'volts': complex('nan')}\n",
+    "the kit's MCU's own variables": "        chip = vars(current_mcu())\n",
+    "a dict of 200,000 items": "        table = TABLE\n",
+    "a dict emptied by deletions": "        emptied = EMPTIED\n",
+    "an object of 20,000 attributes": "        many = MANY\n",
+}
+BIG = ("TABLE = dict.fromkeys(range(200_000), 0)\nEMPTIED = dict.fromkeys(range(300_000), 0)\n"
+       "for _k in range(1, 300_000):\n    del EMPTIED[_k]\n\n\nclass Many:\n    pass\n\n\nMANY = Many()\n"
+       "for _k in range(20_000):\n    setattr(MANY, f'a{_k}', _k)\n")
+
+
+@pytest.mark.parametrize("name", sorted(POLLING_WITH))
+def test_a_polling_loop_turns_the_same_whatever_it_holds_in_every_run_and_both_ways(sandbox, tmp_path, monkeypatch,
+                                                                                   name):
+    """A complex NaN's hash is its identity's (the loop turned 0, 2 or 3 times more from run to run); the kit's MCU's
+    dict changes as the board runs (sandboxed, the loop turned 2,700 times); a big dict or object was copied whole
+    at each look (a 700-turn timeout took 195 s in `check`, and a CPU-time fault in the grader)."""
+    body = TURNS_EX2.replace("        next(turns)\n", "        next(turns)\n" + POLLING_WITH[name], 1)
+    body = body.replace("TxData = [", BIG + "\n\nTxData = [", 1)
+    old, timeout = COUNTING_EX2["a timeout of 700 turns before each frame it sends"]
+    (tmp_path / "plain").mkdir()
+    plain = both_ways(sandbox, tmp_path / "plain", monkeypatch, "ex2", TURNS_EX2.replace(old, timeout, 1),
+                      ex2_check.run)
+    runs = [both_ways(sandbox, tmp_path, monkeypatch, "ex2", body.replace(old, timeout, 1), ex2_check.run)
+            for _ in range(2)]
+    assert all(run == plain for run in runs), name
 
 
 def test_comparing_variables_runs_none_of_the_firmwares_own_code(tmp_path):

@@ -21,6 +21,9 @@ FROZEN_ITEMS = 256          # items of a list compared one by one, at most; a lo
 FROZEN_BUDGET = 4096        # items one survey of the variables takes in, at most; the rest counts as unchanged
 FROZEN_FRAMES = 8           # the innermost firmware frames whose variables are looked at (the outer ones wait for them)
 KEPT_MOST = 4096            # code objects, modules and classes the tables below remember (the rest are read anew)
+SPARSE_DICT_BYTES = 16384   # a dict that takes more room (dict.__sizeof__) is compared by its size: 256 items take 9 kB
+CLASS_ITEMS = 1024          # a class whose namespaces (its own and its bases') hold more is compared by its kind
+CLASS_LINEAGE = 64          # ... as is one with more bases in its method resolution order
 
 
 # id(code object) -> FIRMWARE, KIT or ENTRY; id(code object) -> the names of data it reads from its module; id(module
@@ -89,7 +92,7 @@ def forget_firmware_code() -> None:
     """Empty the caches behind `firmware_site` (new firmware brings new code objects)."""
     _KINDS.clear()
     _DATA_GLOBALS.clear()
-    _INSTANCE_DICTS.clear()
+    _CLASSES.clear()
     _ASSIGNED.clear()
     _KEPT.clear()
 
@@ -243,9 +246,10 @@ def _data_globals(module: dict[str, Any], code: CodeType) -> tuple[str, ...]:
         and (name in assigned or _container(dict.__getitem__(module, name)))))
 
 
-def _container(value: object) -> bool:
+def _container(value: Any) -> bool:
     kind = type(value)
-    return issubclass(kind, (list, bytearray, dict)) or _attributes(value, kind) is not None
+    return (issubclass(kind, (list, bytearray, dict)) or _class_of(kind)[0] == _FROM_FIRMWARE
+            or (kind is type and _class_of(value)[0] == _FROM_FIRMWARE))     # (a class: State.count += 1)
 
 
 def _assigned_globals(module: dict[str, Any]) -> frozenset[str]:
@@ -291,6 +295,7 @@ class _Survey:
 
 _UNSEEN = "(not surveyed)"              # what is past a survey's budget or depth: the same every time
 _OTHER = "(compared by kind only)"      # any other object: the same every time, whatever its identity
+_KIT = "(the kit's)"                    # an object of the kit's own: the board's state is no firmware's variable
 _NAN = "(NaN)"
 
 
@@ -305,13 +310,14 @@ _BY_SLOTS: dict[int, type] = {}         # by id, as _PLAIN
 def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
     """`value` as something hashable that changes when its contents do, without running any of the firmware's own
     code (its __hash__, __iter__, properties, metaclass): the plain values as they are, a list (a C array, struct or
-    variable whose address is taken, a queue) or a tuple (a CANMessage) by its items, the kit's own slotted types by
-    their slots; any other object by its kind only, so that an object made again at each turn (a dict, a class's
-    instance, a generator) is no change, and the survey is the same in every run."""
+    variable whose address is taken, a queue) or a tuple (a CANMessage) by its items, a dict by its items, an object
+    of the firmware's own class by its attributes and the class by its namespace (`State.count`), the kit's own
+    slotted types by their slots; the kit's other objects and any other object by its kind only, so that an object
+    made again at each turn (a generator) is no change, and the survey is the same in every run."""
     kind = type(value)
     if id(kind) in _PLAIN:
-        return _NAN if kind is float and value != value else value     # a NaN's hash is its identity's
-    if survey.left <= 0 or depth >= FROZEN_DEPTH:
+        return _NAN if (kind is float or kind is complex) and value != value else value    # a NaN's hash is its
+    if survey.left <= 0 or depth >= FROZEN_DEPTH:                                           # identity's
         return _UNSEEN
     if issubclass(kind, (list, tuple, bytearray)):
         known = survey.seen.get(id(value))
@@ -333,58 +339,83 @@ def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
     if id(kind) in _BY_SLOTS:
         survey.left -= 1
         return tuple([_frozen(getattr(value, name, None), survey, depth + 1) for name in kind.__slots__])
-    entries = dict.items(value) if issubclass(kind, dict) else _attributes(value, kind)
-    if entries is None:
-        return _OTHER
-    known = survey.seen.get(id(value))
+    if issubclass(kind, dict):
+        return _frozen_items(value, value, survey, depth)
+    origin, attributes = _class_of(kind)
+    if origin == _FROM_FIRMWARE and attributes is not None:
+        try:
+            namespace = attributes.__get__(value, kind)
+        except TypeError:               # the __dict__ of another class
+            return _OTHER
+        return _frozen_items(value, namespace, survey, depth) if type(namespace) is dict else _OTHER
+    if origin == _FROM_KIT:
+        return _KIT
+    if kind is type:                    # a class: the firmware's by what its namespace holds (State.count += 1)
+        origin = _class_of(value)[0]
+        return _KIT if origin == _FROM_KIT else _frozen_items(value, value.__dict__, survey, depth) \
+            if origin == _FROM_FIRMWARE else _OTHER
+    return _OTHER
+
+
+def _frozen_items(owner: object, items: Any, survey: _Survey, depth: int) -> object:
+    """A dict (an object's attributes, a class's namespace) by its items, keys and values frozen; by its kind only if
+    it holds one of the kit's objects (`vars()` of the kit's MCU: the board's state, which changes as it runs); by
+    its size if it holds more than FROZEN_ITEMS items or the room of many more (a dict emptied by deletions is read
+    slot by slot). `items` is a dict or a class's mappingproxy: nothing of the firmware's runs in them."""
+    known = survey.seen.get(id(owner))
     if known is not None:
         return known
-    pairs = list(entries)
-    if len(pairs) > FROZEN_ITEMS:
-        frozen = (_UNSEEN, len(pairs))
+    plain = issubclass(type(items), dict)   # (a dict of the firmware's own class too: dict's methods, not its)
+    size = dict.__len__(items) if plain else len(items)
+    if size > FROZEN_ITEMS or (plain and dict.__sizeof__(items) > SPARSE_DICT_BYTES):
+        frozen: object = (_UNSEEN, size)
     else:
-        frozen = tuple([(_frozen(key, survey, depth + 1), _frozen(item, survey, depth + 1)) for key, item in pairs])
-    survey.left -= len(pairs) + 1
-    survey.seen[id(value)] = frozen
+        pairs = [(_frozen(key, survey, depth + 1), _frozen(item, survey, depth + 1))
+                 for key, item in (dict.items(items) if plain else items.items())]
+        frozen = _OTHER if any(key is _KIT or item is _KIT for key, item in pairs) else tuple(pairs)
+    survey.left -= size + 1
+    survey.seen[id(owner)] = frozen
     return frozen
 
 
-def _attributes(value: object, kind: type) -> Any:
-    """The attributes of an object of a class of the firmware's own (`self.count`, a dataclass's fields), as
-    dict.items, read without running any of its code; None for any other object (the kit's, Python's, one of a
-    class with a metaclass or a __dict__ of its own)."""
-    descriptor = _INSTANCE_DICTS.get(id(kind))
-    if descriptor is None and id(kind) not in _INSTANCE_DICTS:
-        descriptor = _remember(_INSTANCE_DICTS, kind, _instance_dict(kind))
-    if descriptor is None:
-        return None
-    try:
-        attributes = descriptor.__get__(value, kind)
-    except TypeError:                   # the __dict__ of another class
-        return None
-    return dict.items(attributes) if type(attributes) is dict else None
+def _class_of(kind: type) -> tuple[int, GetSetDescriptorType | None]:
+    """Where the class `kind` comes from, and what gives its objects their attributes (the __dict__ Python gives a
+    class's objects; None if they have none of that kind), read once (`_read_class`)."""
+    found = _CLASSES.get(id(kind))
+    if found is None:
+        found = _remember(_CLASSES, kind, _read_class(kind))
+    return found
 
 
-def _instance_dict(kind: type) -> GetSetDescriptorType | None:
-    """What gives the objects of `kind` their attributes, if it is a class of the firmware's own (a class statement
-    outside the kit, no metaclass) whose objects have the __dict__ Python gives them. The class's namespace is read
-    item by item, so that no key of its own is compared (its __eq__ would run)."""
+def _read_class(kind: type) -> tuple[int, GetSetDescriptorType | None]:
+    """`_class_of`, read as type reads a class, item by item, so that no key of its namespace is compared (its __eq__
+    would run): the firmware's or the kit's if a class statement made it (no metaclass), by its module; anything else
+    is Python's (a C type, one with a metaclass, a namespace too big to read)."""
     if type(kind) is not type or not kind.__flags__ & _HEAP_TYPE:
-        return None                     # (its metaclass is type: the class is read as type reads it)
-    module = descriptor = None
-    for each in kind.__mro__:
+        return _FROM_PYTHON, None       # (its metaclass is type: what follows reads it as type does)
+    lineage = kind.__mro__
+    if len(lineage) > CLASS_LINEAGE or sum(len(each.__dict__) for each in lineage) > CLASS_ITEMS:
+        return _FROM_PYTHON, None
+    module: object = None
+    attributes: Any = None
+    for each in lineage:
         for key, item in each.__dict__.items():
-            if type(key) is str:
-                if module is None and each is kind and str.__eq__(key, "__module__"):
-                    module = item
-                elif descriptor is None and str.__eq__(key, "__dict__"):
-                    descriptor = item
-        if descriptor is not None:
+            if type(key) is not str:
+                continue
+            if module is None and each is kind and str.__eq__(key, "__module__"):
+                module = item
+            elif attributes is None and str.__eq__(key, "__dict__"):
+                # Python's own __dict__ of the class that brought it, not any C descriptor put there
+                own = (type(item) is GetSetDescriptorType and item.__objclass__ is each
+                       and type(item.__name__) is str and str.__eq__(item.__name__, "__dict__"))
+                attributes = item if own else False
+        if attributes is not None:
             break
-    if type(module) is not str or str.startswith(module, "appsim.") or type(descriptor) is not GetSetDescriptorType:
-        return None
-    return descriptor
+    if type(module) is not str:
+        return _FROM_PYTHON, None
+    return (_FROM_KIT if str.startswith(module, "appsim.") else _FROM_FIRMWARE), attributes or None
 
 
-_INSTANCE_DICTS: dict[int, GetSetDescriptorType | None] = {}   # id(class) -> `_instance_dict`
+_FROM_PYTHON, _FROM_KIT, _FROM_FIRMWARE = range(3)
+_CLASSES: dict[int, tuple[int, GetSetDescriptorType | None]] = {}      # id(class) -> `_class_of`
 _HEAP_TYPE = 1 << 9                     # Py_TPFLAGS_HEAPTYPE: a class made by a class statement (or type())
