@@ -17,7 +17,7 @@ COUNTED_TURNS = 1024        # reads again in a new state (a turn of CANIsRxReady
                             # make per change on the board, or per look, as on the chip; then they park as polling does
 LOOK_PASSES = 64            # reads again elsewhere a looked-at loop may make on its way back to where it was woken
 FROZEN_DEPTH = 3            # lists in lists (a queue of frames, an array of structs) are compared this deep
-FROZEN_ITEMS = 256          # items of a list compared one by one, at most; a longer one by its length
+FROZEN_ITEMS = 256          # items of a list or a dict compared one by one, at most; a longer one by its length
 FROZEN_BUDGET = 4096        # items one survey of the variables takes in, at most; the rest counts as unchanged
 FROZEN_FRAMES = 8           # the innermost firmware frames whose variables are looked at (the outer ones wait for them)
 KEPT_MOST = 4096            # code objects, modules and classes the tables below remember (the rest are read anew)
@@ -247,6 +247,8 @@ def _data_globals(module: dict[str, Any], code: CodeType) -> tuple[str, ...]:
 
 
 def _container(value: Any) -> bool:
+    """Whether a global holds data whose contents can change: a list, an array, a dict, an object of the firmware's
+    own class, or such a class."""
     kind = type(value)
     return (issubclass(kind, (list, bytearray, dict)) or _class_of(kind)[0] == _FROM_FIRMWARE
             or (kind is type and _class_of(value)[0] == _FROM_FIRMWARE))     # (a class: State.count += 1)
@@ -339,21 +341,23 @@ def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
     if id(kind) in _BY_SLOTS:
         survey.left -= 1
         return tuple([_frozen(getattr(value, name, None), survey, depth + 1) for name in kind.__slots__])
+    origin, attributes = _class_of(kind)
+    if origin == _FROM_KIT:
+        return _KIT
     if issubclass(kind, dict):
         return _frozen_items(value, value, survey, depth)
-    origin, attributes = _class_of(kind)
     if origin == _FROM_FIRMWARE and attributes is not None:
         try:
             namespace = attributes.__get__(value, kind)
         except TypeError:               # the __dict__ of another class
             return _OTHER
         return _frozen_items(value, namespace, survey, depth) if type(namespace) is dict else _OTHER
-    if origin == _FROM_KIT:
-        return _KIT
-    if kind is type:                    # a class: the firmware's by what its namespace holds (State.count += 1)
+    if kind is type:                    # a class, by where it comes from
         origin = _class_of(value)[0]
-        return _KIT if origin == _FROM_KIT else _frozen_items(value, value.__dict__, survey, depth) \
-            if origin == _FROM_FIRMWARE else _OTHER
+        if origin == _FROM_KIT:
+            return _KIT
+        if origin == _FROM_FIRMWARE:    # by what its namespace holds (State.count += 1)
+            return _frozen_items(value, value.__dict__, survey, depth)
     return _OTHER
 
 
