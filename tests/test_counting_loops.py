@@ -405,6 +405,18 @@ class Borrowed:                     # another class's C descriptor as its __dict
     __dict__ = type.__dict__["__doc__"]
 
 
+class Spying(dict):
+    def values(self):
+        ran.append("namespace values")
+        raise RuntimeError("values")
+
+
+class Prepared(type):               # a class body whose namespace, its frame's locals, is the firmware's mapping
+    @classmethod
+    def __prepare__(mcs, name, bases, **keywords):
+        return Spying()
+
+
 def main():
     GLCD_Initial()
     evil, slotted, odd, k = Evil([1, 2]), Slotted(), Odd(), 0
@@ -412,6 +424,12 @@ def main():
     probe, borrowed = Probe(Spy()), Borrowed()
     object.__setattr__(holder, "evil", Evil([3]))
     ran.clear()
+
+    class Body(metaclass=Prepared):
+        turns = 0
+        while turns < 3:
+            turns += 1
+            seen = SFR.ADRESL
     while k < 5:
         k += 1
         x = SFR.ADRESH
@@ -436,10 +454,11 @@ POLLING_WITH = {
     "a dict of 200,000 items": "        table = TABLE\n",
     "a dict emptied by deletions": "        emptied = EMPTIED\n",
     "an object of 20,000 attributes": "        many = MANY\n",
+    "a list of 5,000,000 items": "        huge = HUGE\n",
 }
 BIG = ("TABLE = dict.fromkeys(range(200_000), 0)\nEMPTIED = dict.fromkeys(range(300_000), 0)\n"
        "for _k in range(1, 300_000):\n    del EMPTIED[_k]\n\n\nclass Many:\n    pass\n\n\nMANY = Many()\n"
-       "for _k in range(20_000):\n    setattr(MANY, f'a{_k}', _k)\n")
+       "for _k in range(20_000):\n    setattr(MANY, f'a{_k}', _k)\nHUGE = [0] * 5_000_000\n")
 
 
 @pytest.mark.parametrize("name", sorted(POLLING_WITH))
@@ -447,7 +466,8 @@ def test_a_polling_loop_turns_the_same_whatever_it_holds_in_every_run_and_both_w
                                                                                    name):
     """A complex NaN's hash is its identity's (the loop turned 0, 2 or 3 times more from run to run); the kit's MCU's
     dict changes as the board runs (sandboxed, the loop turned 2,700 times); a big dict or object was copied whole
-    at each look (a 700-turn timeout took 195 s in `check`, and a CPU-time fault in the grader)."""
+    at each look (a 700-turn timeout took 195 s in `check`, and a CPU-time fault in the grader), and so was a list
+    of millions."""
     body = TURNS_EX2.replace("        next(turns)\n", "        next(turns)\n" + POLLING_WITH[name], 1)
     body = body.replace("TxData = [", BIG + "\n\nTxData = [", 1)
     old, timeout = COUNTING_EX2["a timeout of 700 turns before each frame it sends"]

@@ -227,7 +227,8 @@ def frame_variables(frame: FrameType, survey: _Survey) -> tuple[object, ...]:
     names = _DATA_GLOBALS.get(id(code))
     if names is None:
         names = _data_globals(module, code)
-    return tuple([_frozen(value, survey) for value in (*frame.f_locals.values(),
+    local = frame.f_locals              # a class body's namespace may be the firmware's mapping (__prepare__)
+    return tuple([_frozen(value, survey) for value in (*(dict.values(local) if issubclass(type(local), dict) else ()),
                                                          *(dict.get(module, name) for name in names))])
 
 
@@ -325,15 +326,16 @@ def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
         known = survey.seen.get(id(value))
         if known is not None:
             return known
-        items = (list.copy(value) if issubclass(kind, list) else bytes(memoryview(value))
-                 if issubclass(kind, bytearray) else tuple.__getitem__(value, slice(None)))
-        if len(items) > FROZEN_ITEMS:
-            frozen: object = (_UNSEEN, len(items))
-        elif issubclass(kind, bytearray):
-            frozen = items
+        base = list if issubclass(kind, list) else bytearray if issubclass(kind, bytearray) else tuple
+        size = base.__len__(value)      # before anything is copied: a list of millions is compared by its size
+        if size > FROZEN_ITEMS:
+            frozen: object = (_UNSEEN, size)
+        elif base is bytearray:
+            frozen = bytes(memoryview(value))
         else:
+            items = list.copy(value) if base is list else tuple.__getitem__(value, slice(None))
             frozen = tuple([_frozen(item, survey, depth + 1) for item in items])
-        survey.left -= len(items) + 1
+        survey.left -= size + 1
         survey.seen[id(value)] = frozen
         return frozen
     if issubclass(kind, int):           # an IntEnum's member, a flag
