@@ -98,6 +98,8 @@ KEPT_COUNTS = {
     "an attribute two objects deep": ("state = Counter(); state.inner = Counter()", "state.inner.k < 50",
                                       "state.inner.k += 1"),
     "a class's attribute": ("State.k = 0", "State.k < 50", "State.k += 1"),
+    "a slotted object's attribute": ("state = Boxed()", "state.k < 50", "state.k += 1"),
+    "a slotted dataclass's field": ("state = SlottedKept()", "state.k < 50", "state.k += 1"),
 }
 KEPT_COUNT = """from dataclasses import dataclass
 
@@ -116,6 +118,18 @@ class Kept:
 
 class State:
     k = 0
+
+
+class Boxed:
+    __slots__ = ("k",)
+
+    def __init__(self):
+        self.k = 0
+
+
+@dataclass(slots=True)
+class SlottedKept:
+    k: int = 0
 
 
 STATE = {{}}

@@ -8,7 +8,7 @@ from __future__ import annotations
 import opcode
 import sys
 from collections.abc import Callable
-from types import CodeType, FrameType, FunctionType, GetSetDescriptorType
+from types import CodeType, FrameType, FunctionType, GetSetDescriptorType, MemberDescriptorType
 from typing import Any
 
 POLLING_SITES = 1024        # (register, call site) a polling loop's reads are told apart by, at most, per change on the
@@ -300,6 +300,7 @@ _UNSEEN = "(not surveyed)"              # what is past a survey's budget or dept
 _OTHER = "(compared by kind only)"      # any other object: the same every time, whatever its identity
 _KIT = "(the kit's)"                    # an object of the kit's own: the board's state is no firmware's variable
 _NAN = "(NaN)"
+_UNSET = "(not set)"                    # a slot of an object, before anything was stored in it
 
 
 def compared_by_slots(kind: type) -> None:
@@ -343,17 +344,13 @@ def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
     if id(kind) in _BY_SLOTS:
         survey.left -= 1
         return tuple([_frozen(getattr(value, name, None), survey, depth + 1) for name in kind.__slots__])
-    origin, attributes = _class_of(kind)
+    origin, attributes, slots = _class_of(kind)
     if origin == _FROM_KIT:
         return _KIT
     if issubclass(kind, dict):
         return _frozen_items(value, value, survey, depth)
-    if origin == _FROM_FIRMWARE and attributes is not None:
-        try:
-            namespace = attributes.__get__(value, kind)
-        except TypeError:               # the __dict__ of another class
-            return _OTHER
-        return _frozen_items(value, namespace, survey, depth) if type(namespace) is dict else _OTHER
+    if origin == _FROM_FIRMWARE and (attributes is not None or slots):
+        return _frozen_object(value, kind, attributes, slots, survey, depth)
     if kind is type:                    # a class, by where it comes from
         origin = _class_of(value)[0]
         if origin == _FROM_KIT:
@@ -361,6 +358,28 @@ def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
         if origin == _FROM_FIRMWARE:    # by what its namespace holds (State.count += 1)
             return _frozen_items(value, value.__dict__, survey, depth)
     return _OTHER
+
+
+def _frozen_object(value: object, kind: type, attributes: GetSetDescriptorType | None,
+                   slots: tuple[tuple[str, MemberDescriptorType], ...], survey: _Survey, depth: int) -> object:
+    """An object of the firmware's own class by its attributes: those in its __dict__ and those in its slots (a slot
+    not set yet as such)."""
+    namespace: Any = {}
+    if attributes is not None:
+        try:
+            namespace = attributes.__get__(value, kind)
+        except TypeError:               # the __dict__ of another class
+            return _OTHER
+        if type(namespace) is not dict:
+            return _OTHER
+    if slots and dict.__len__(namespace) <= FROZEN_ITEMS and dict.__sizeof__(namespace) <= SPARSE_DICT_BYTES:
+        namespace = dict.copy(namespace)
+        for name, slot in slots:
+            try:
+                namespace[name] = slot.__get__(value, kind)
+            except AttributeError:
+                namespace[name] = _UNSET
+    return _frozen_items(value, namespace, survey, depth)
 
 
 def _frozen_items(owner: object, items: Any, survey: _Survey, depth: int) -> object:
@@ -384,44 +403,46 @@ def _frozen_items(owner: object, items: Any, survey: _Survey, depth: int) -> obj
     return frozen
 
 
-def _class_of(kind: type) -> tuple[int, GetSetDescriptorType | None]:
-    """Where the class `kind` comes from, and what gives its objects their attributes (the __dict__ Python gives a
-    class's objects; None if they have none of that kind), read once (`_read_class`)."""
+def _class_of(kind: type) -> _Class:
+    """Where the class `kind` comes from, and what gives its objects their attributes: the __dict__ Python gives a
+    class's objects (None if they have none of that kind) and their slots; read once (`_read_class`)."""
     found = _CLASSES.get(id(kind))
     if found is None:
         found = _remember(_CLASSES, kind, _read_class(kind))
     return found
 
 
-def _read_class(kind: type) -> tuple[int, GetSetDescriptorType | None]:
+def _read_class(kind: type) -> _Class:
     """`_class_of`, read as type reads a class, item by item, so that no key of its namespace is compared (its __eq__
     would run): the firmware's or the kit's if a class statement made it (no metaclass), by its module; anything else
     is Python's (a C type, one with a metaclass, a namespace too big to read)."""
     if type(kind) is not type or not kind.__flags__ & _HEAP_TYPE:
-        return _FROM_PYTHON, None       # (its metaclass is type: what follows reads it as type does)
+        return _FROM_PYTHON, None, ()   # (its metaclass is type: what follows reads it as type does)
     lineage = kind.__mro__
     if len(lineage) > CLASS_LINEAGE or sum(len(each.__dict__) for each in lineage) > CLASS_ITEMS:
-        return _FROM_PYTHON, None
+        return _FROM_PYTHON, None, ()
     module: object = None
     attributes: Any = None
+    slots: list[tuple[str, MemberDescriptorType]] = []
     for each in lineage:
         for key, item in each.__dict__.items():
             if type(key) is not str:
                 continue
+            # Python's own descriptors, of the class that brought them, not any C descriptor put there
+            own = type(item) in (GetSetDescriptorType, MemberDescriptorType) and item.__objclass__ is each and (
+                type(item.__name__) is str and str.__eq__(item.__name__, key))
             if module is None and each is kind and str.__eq__(key, "__module__"):
                 module = item
             elif attributes is None and str.__eq__(key, "__dict__"):
-                # Python's own __dict__ of the class that brought it, not any C descriptor put there
-                own = (type(item) is GetSetDescriptorType and item.__objclass__ is each
-                       and type(item.__name__) is str and str.__eq__(item.__name__, "__dict__"))
-                attributes = item if own else False
-        if attributes is not None:
-            break
+                attributes = item if own and type(item) is GetSetDescriptorType else False
+            elif own and type(item) is MemberDescriptorType:
+                slots.append((key, item))
     if type(module) is not str:
-        return _FROM_PYTHON, None
-    return (_FROM_KIT if str.startswith(module, "appsim.") else _FROM_FIRMWARE), attributes or None
+        return _FROM_PYTHON, None, ()
+    return (_FROM_KIT if str.startswith(module, "appsim.") else _FROM_FIRMWARE), attributes or None, tuple(slots)
 
 
 _FROM_PYTHON, _FROM_KIT, _FROM_FIRMWARE = range(3)
-_CLASSES: dict[int, tuple[int, GetSetDescriptorType | None]] = {}      # id(class) -> `_class_of`
+_Class = tuple[int, GetSetDescriptorType | None, tuple[tuple[str, MemberDescriptorType], ...]]
+_CLASSES: dict[int, _Class] = {}        # id(class) -> `_class_of`
 _HEAP_TYPE = 1 << 9                     # Py_TPFLAGS_HEAPTYPE: a class made by a class statement (or type())
