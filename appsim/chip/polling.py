@@ -372,7 +372,7 @@ def _frozen_object(value: object, kind: type, attributes: GetSetDescriptorType |
             return _OTHER
         if type(namespace) is not dict:
             return _OTHER
-    if slots and dict.__len__(namespace) <= FROZEN_ITEMS and dict.__sizeof__(namespace) <= SPARSE_DICT_BYTES:
+    if slots and not _too_big(namespace):
         namespace = dict.copy(namespace)
         for name, slot in slots:
             try:
@@ -392,7 +392,7 @@ def _frozen_items(owner: object, items: Any, survey: _Survey, depth: int) -> obj
         return known
     plain = issubclass(type(items), dict)   # (a dict of the firmware's own class too: dict's methods, not its)
     size = dict.__len__(items) if plain else len(items)
-    if size > FROZEN_ITEMS or (plain and dict.__sizeof__(items) > SPARSE_DICT_BYTES):
+    if (plain and _too_big(items)) or size > FROZEN_ITEMS:
         frozen: object = (_UNSEEN, size)
     else:
         pairs = [(_frozen(key, survey, depth + 1), _frozen(item, survey, depth + 1))
@@ -401,6 +401,12 @@ def _frozen_items(owner: object, items: Any, survey: _Survey, depth: int) -> obj
     survey.left -= size + 1
     survey.seen[id(owner)] = frozen
     return frozen
+
+
+def _too_big(items: dict[Any, Any]) -> bool:
+    """Whether a dict is compared by its size: more than FROZEN_ITEMS items, or the room of many more (a dict
+    emptied by deletions is read slot by slot)."""
+    return dict.__len__(items) > FROZEN_ITEMS or dict.__sizeof__(items) > SPARSE_DICT_BYTES
 
 
 def _class_of(kind: type) -> _Class:
