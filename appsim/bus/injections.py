@@ -63,6 +63,11 @@ class Injections:
     def __bool__(self) -> bool:
         return bool(self._armed)
 
+    @property
+    def nodes(self) -> Mapping[str, object]:
+        """The nodes any injection was ever armed for (only they need be offered a frame: `offer`)."""
+        return self._seen
+
     def arm(self, injection: Injection) -> None:
         self._armed.append(_Armed(injection, injection.frames))
         self._seen.setdefault(injection.node, _Seen())
@@ -72,7 +77,7 @@ class Injections:
         mode gets its first armed injection for this identifier, and after it those at later bits, until one is not;
         the others wait for the next frames. `plain`: the frame goes through unless an injection fires, so one at a
         bit past its end cannot fire in it. A node in Listen-only mode sends no error flag: its injections wait."""
-        taking = {node.name: node for node in nodes if node.name in self._seen}
+        taking = {node.name: node for node in nodes if node.name in self._seen}     # (`nodes` may hold only those)
         for one in taking.values():
             seen = self._seen[one.name]
             seen.frames += 1

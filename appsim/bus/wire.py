@@ -440,9 +440,11 @@ class Bus:
             ackers += (sender.name,)     # it went through out there already: the outside nodes ACKed it
         plain = (bool(ackers) and not self._drifting and all(e[3] == frame for e in same_id)
                  and all(p.rate_ok for p in listeners) and all(e[1].rate_ok for e in entries))
+        armed = self.injections.nodes
         injections = {} if not self.injections else self.injections.offer(
-            frame, [Taking(e[1].name, True, True) for e in entries]
-            + [Taking(p.name, p.mode == Mode.NORMAL, False) for p in listeners if id(p) not in senders], plain=plain)
+            frame, [Taking(e[1].name, True, True) for e in entries if e[1].name in armed]
+            + [Taking(p.name, p.mode == Mode.NORMAL, False) for p in listeners if id(p) not in senders
+               and p.name in armed], plain=plain)
         if injections or not plain:
             self._bit_by_bit(now, entries, listeners, injections)
             return

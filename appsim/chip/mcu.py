@@ -481,7 +481,10 @@ class PIC18F8680(SFRNames):
         if parked_on is None:
             return True
         readers = self._readers
-        return any(readers.get(address, _reads_zero)(address) != value for address, value in parked_on.items())
+        for address, value in parked_on.items():     # (a loop, not any(): at each event of the bus, for each board)
+            if readers.get(address, _reads_zero)(address) != value:
+                return True
+        return False
 
     def run(self, main: Callable[[], Any], routines: Mapping[int, Routine] | None = None) -> Process:
         """Start firmware `main` on this MCU (after a reset, as programming the chip would), with its interrupt

@@ -52,7 +52,7 @@ def firmware_site(depth: int = 2, *, variables: bool = False) -> int:
     than the rest of it."""
     frame: FrameType | None = sys._getframe(depth)
     kinds = _KINDS
-    site, frames, survey = 0, FROZEN_FRAMES, _Survey()
+    site, frames, survey = 0, FROZEN_FRAMES, _Survey() if variables else None
     while frame is not None:
         code = frame.f_code
         kind = kinds.get(id(code))
@@ -62,6 +62,7 @@ def firmware_site(depth: int = 2, *, variables: bool = False) -> int:
             if not variables:
                 site = hash((site, id(code), frame.f_lasti))
             elif frames:
+                assert survey is not None
                 site = hash((site, id(code), frame_variables(frame, survey)))
                 frames -= 1
             else:

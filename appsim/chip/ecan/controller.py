@@ -4,6 +4,7 @@ Firmware reads and writes registers; the wire calls the event methods (`appsim.b
 """
 from __future__ import annotations
 
+import functools
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -85,6 +86,8 @@ _RESETS_ACCEPTANCE = frozenset(r.address for r in R.REGISTERS if r.protected)   
 _SIDE_EFFECTS = frozenset(R.BY_NAME[n].address for n in ("CANCON", "TXB0CON", "TXB1CON", "TXB2CON", "RXB0CON",
                                                         "ECANCON"))
 
+_timing = functools.lru_cache(maxsize=64)(BitTiming.from_registers)     # asked at every frame the bus runs bit by bit
+
 
 class ECAN(ErrorCounters):
     """One ECAN module. Registers are the truth; everything else is derived from them or is counters.
@@ -133,7 +136,8 @@ class ECAN(ErrorCounters):
 
     def bit_timing(self) -> BitTiming:
         """The bit timing BRGCON1..3 hold (whatever the mode; the registers only read 0 to firmware)."""
-        return BitTiming.from_registers(self.get("BRGCON1"), self.get("BRGCON2"), self.get("BRGCON3"))
+        sfr = self._sfr
+        return _timing(sfr[0x70], sfr[0x71], sfr[0x72])
 
     def get(self, name: str) -> int:
         """A register's stored value by datasheet name, without side effects or protection."""
