@@ -305,11 +305,13 @@ _UNSET = "(not set)"                    # a slot of an object, before anything w
 
 
 def compared_by_slots(kind: type) -> None:
-    """Compare the kit's own slotted `kind` (the C runtime's pointer) by what its slots hold."""
-    _BY_SLOTS[id(kind)] = kind
+    """Compare the kit's own slotted `kind` (the C runtime's pointer) by what its slots hold, its bases' included."""
+    _BY_SLOTS[id(kind)] = tuple(name for each in reversed(kind.__mro__) for name in vars(each).get("__slots__", ()))
+    _KEEP_KINDS.append(kind)
 
 
-_BY_SLOTS: dict[int, type] = {}         # by id, as _PLAIN
+_BY_SLOTS: dict[int, tuple[str, ...]] = {}      # by id, as _PLAIN: the names of the slots
+_KEEP_KINDS: list[type] = []                    # so that each id stays its kind's
 
 
 def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
@@ -342,9 +344,10 @@ def _frozen(value: Any, survey: _Survey, depth: int = 0) -> object:
         return frozen
     if issubclass(kind, int):           # an IntEnum's member, a flag
         return int.__index__(value)
-    if id(kind) in _BY_SLOTS:
+    named = _BY_SLOTS.get(id(kind))
+    if named is not None:
         survey.left -= 1
-        return tuple([_frozen(getattr(value, name, None), survey, depth + 1) for name in kind.__slots__])
+        return tuple([_frozen(getattr(value, name, None), survey, depth + 1) for name in named])
     origin, attributes, slots = _class_of(kind)
     if origin == _FROM_KIT:
         return _KIT

@@ -435,7 +435,7 @@ def _module(tr: Translator, filename: str) -> tuple[ast.Module, dict[str, Any]]:
     namespace.update({IDLE: idle, ROUTINE_MARKS[HIGH_VECTOR]: interrupt, ROUTINE_MARKS[LOW_VECTOR]: interruptlow})
     for name, value in tr.constants.items():
         if isinstance(value, compiler._RomString):
-            namespace[name] = runtime.Ptr(value.data, 0, 0, len(value.data), value.name, True)
+            namespace[name] = runtime.Ptr(value.data, 0, 0, len(value.data), value.name, True, value.element)
         else:
             namespace[name] = value
     body: list[ast.stmt] = list(tr.module)

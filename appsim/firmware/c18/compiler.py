@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import ast
 import copy
+import itertools
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -569,9 +570,8 @@ class Translator:
             return ast.Tuple(items, ast.Load()) if t.rom else ast.List(items, ast.Load())
         if isinstance(t, Struct):
             assert t.members is not None
-            if not isinstance(init, c_ast.InitList):
-                e = self.rvalue(init)
-                return self.convert(e, t, init, "the initial value")
+            if not isinstance(init, c_ast.InitList):      # a copy of the struct, as `=` makes
+                return _rt("copy", [self.convert(self.rvalue(init), t, init, "the initial value")])
             if len(init.exprs) > len(t.members):
                 raise self.refuse(init, f"{len(init.exprs)} initial values for struct {t.tag}'s "
                                         f"{len(t.members)} members")
@@ -920,7 +920,10 @@ class Translator:
                                     "globals and statics only (C18 says so too); make it static, or global")
         assert self.function is not None
         if "static" in decl.storage:
-            py = f"__static_{self.function.py}_{decl.name}"
+            py = base = f"__static_{self.function.py}_{decl.name}"
+            copies = itertools.count(2)         # another block's static of that name (f's n, f_n's ...): its own
+            while py in self.globals:
+                py = f"{base}_{next(copies)}"
             sym = self.declare(Sym(decl.name, "var", ctype, py=py, is_global=True,
                                    boxed=decl.name in self.addressed and not isinstance(ctype, Array)), decl)
             self.globals.add(py)
@@ -982,8 +985,8 @@ class Translator:
         if node.op in ("==", "!="):
             test = _rt("same", [a.py, b.py])
             return self.at(node, test if node.op == "==" else ast.UnaryOp(ast.Not(), test))
-        return self.at(node, ast.Compare(ast.Attribute(a.py, "i", ast.Load()), [_COMPARE[node.op]()],
-                                         [ast.Attribute(b.py, "i", ast.Load())]))
+        return self.at(node, ast.Compare(_rt("order", [a.py, b.py, ast.Constant(node.op)]), [_COMPARE[node.op]()],
+                                         [ast.Constant(0)]))
 
     def pointer_pair(self, a: E, b: E, node: Any) -> tuple[E, E]:
         if isinstance(a.t, Int) and a.const == 0:
@@ -1008,11 +1011,10 @@ class Translator:
     def decay(self, e: E, node: Any) -> E:
         assert isinstance(e.t, Array) and e.t.length is not None
         element = e.t.element
-        signed = isinstance(element, Int) and element.size == 1 and element.signed
         if e.literal is not None:
             return E(e.py, Pointer(target=element), literal=e.literal, name=e.name)
         py = _rt("Ptr", [e.py, ast.Constant(0), ast.Constant(0), ast.Constant(e.t.length), ast.Constant(e.name),
-                         ast.Constant(e.t.rom), ast.Constant(signed)])
+                         ast.Constant(e.t.rom), _element(element)])
         return E(py, Pointer(target=element.qualified(rom=e.t.rom)), name=e.name)
 
     def expr(self, node: Any) -> E:
@@ -1030,8 +1032,11 @@ class Translator:
             codes = _string_codes(node.value, self, node) + [0]
             name = self.temp("str")
             shown = node.value if len(node.value) <= 24 else node.value[:21] + '..."'
-            self.constants[name] = _RomString(bytes(c & 0xFF for c in codes), f"the string {shown}")
-            return E(_name(name), Array(element=T.CHAR.qualified(const=True, rom=True), length=len(codes),
+            plain = T.integer_type(["char"], self.unsigned_char)       # signed, unsigned with -k
+            assert plain is not None
+            self.constants[name] = _RomString(tuple(c - 0x100 if plain.signed and c >= 0x80 else c for c in codes),
+                                              _element_value(plain), f"the string {shown}")
+            return E(_name(name), Array(element=plain.qualified(const=True, rom=True), length=len(codes),
                                         rom=True, const=True), literal=node.value, name=f"the string {shown}")
         if kind == "char":
             codes = _string_codes(node.value[1:-1], self, node, quoted=False)
@@ -1097,6 +1102,9 @@ class Translator:
             measured = self.type_of(node.expr) if isinstance(node.expr, c_ast.Typename) else self.expr(node.expr).t
             if isinstance(measured, Void):
                 raise self.refuse(node, "sizeof of void: void has no size")
+            if isinstance(measured, Int) and measured.width is not None:
+                raise self.refuse(node, "sizeof of a bit-field: C forbids it (a bit-field is part of a byte); take "
+                                        "the size of the struct, or of the field's type")
             size = self._size(measured, node)
             t = T.constant_type(size, decimal=True, unsigned=True, long=False, promote=True) or T.UINT
             return E(ast.Constant(size), T.UINT if t.size <= 2 else t, size, size, size)
@@ -1221,7 +1229,7 @@ class Translator:
         if op == "+" and isinstance(b.t, Pointer) and isinstance(a.t, Int):
             return E(_rt("advance", [b.py, a.py]), b.t, name=b.name)
         if op == "-" and isinstance(a.t, Pointer) and isinstance(b.t, Pointer):
-            return E(_call(ast.Attribute(a.py, "minus", ast.Load()), [b.py]), T.INT, T.INT.low, T.INT.high)
+            return E(_rt("difference", [a.py, b.py]), T.INT, T.INT.low, T.INT.high)
         raise self.refuse(node, f"{op} of {a.t.spelled()} and {b.t.spelled()} is not C")
 
     def x_TernaryOp(self, node: c_ast.TernaryOp) -> E:
@@ -1234,6 +1242,13 @@ class Translator:
             return E(ast.IfExp(test, x.py, y.py), t, min(x.lo, y.lo), max(x.hi, y.hi))
         if isinstance(a.t, Pointer) or isinstance(b.t, Pointer):
             a, b = self.pointer_pair(a, b, node)
+            assert isinstance(a.t, Pointer) and isinstance(b.t, Pointer)
+            if a.t.target.rom != b.t.target.rom:         # (NULL has the other side's type)
+                rom, ram = (a, b) if a.t.target.rom else (b, a)
+                raise self.refuse(node, f"one side of ?: points into program memory ({rom.name or rom.t.spelled()}), "
+                                        f"the other into RAM ({ram.name or ram.t.spelled()}): C18 reads both as one "
+                                        "pointer type, so one of them reads garbage. Make both RAM strings (copy the "
+                                        "literal with strcpypgm2ram) or both ROM")
             return E(ast.IfExp(test, a.py, b.py), a.t)
         if a.t.unqualified() == b.t.unqualified():
             return E(ast.IfExp(test, a.py, b.py), a.t)
@@ -1266,8 +1281,7 @@ class Translator:
                 raise self.refuse(node, f"a cast of a number to {t.spelled()}: the kit's C has no addresses as "
                                         "numbers; point at a variable with &")
             if isinstance(e.t, Pointer):
-                self.check_pointer(e, t, node, "the cast", cast=True)
-                return E(e.py, t, name=e.name, literal=e.literal)
+                return E(self.pointer_converted(e, t, node, "the cast", cast=True), t, name=e.name, literal=e.literal)
         raise self.refuse(node, f"a cast to {t.spelled()} is not supported by the kit's C")
 
     # -------------------------------------------------------------- calls
@@ -1327,7 +1341,7 @@ class Translator:
         else:
             raise self.refuse(node, f"a {e.t.spelled()} cannot be passed to a function's ... arguments")
         return _rt("Arg", [value, ast.Constant(size), ast.Constant(spelled), ast.Constant(kind),
-                           ast.Constant(e.const is not None)])
+                           ast.Constant(e.const is not None), ast.Constant(self.promote)])
 
     # -------------------------------------------------------------- conversions
     def as_int(self, e: E, t: Int) -> E:
@@ -1374,15 +1388,16 @@ class Translator:
                                         f"{what} is {t.spelled()}: an address; a number is not one here")
             if not isinstance(e.t, Pointer):
                 raise self.refuse(node, f"{what} is {t.spelled()}; this is {e.t.spelled()}")
-            self.check_pointer(e, t, node, what)
-            return e.py
+            return self.pointer_converted(e, t, node, what)
         if isinstance(t, Struct):
             if not isinstance(e.t, Struct) or e.t.key != t.key:
                 raise self.refuse(node, f"{what} is {t.spelled()}; this is {e.t.spelled()}")
             return e.py
         raise self.refuse(node, f"{what} of type {t.spelled()} is not supported by the kit's C")
 
-    def check_pointer(self, e: E, t: Pointer, node: Any, what: str, cast: bool = False) -> None:
+    def pointer_converted(self, e: E, t: Pointer, node: Any, what: str, cast: bool = False) -> ast.expr:
+        """`e` as a pointer of type `t`; refused where it would point to a type of another size. To the other
+        signedness, or from a void pointer, it reads through `runtime.viewed` (which checks what the object holds)."""
         assert isinstance(e.t, Pointer)
         source, target = e.t.target, t.target
         if source.rom and not target.rom:
@@ -1402,15 +1417,17 @@ class Translator:
             hint = f": use {fix[function]}() for a string in RAM" if function in fix else ""
             raise self.refuse(node, f"{what} points into program memory ({t.spelled()}), but {e.name or 'this'} is "
                                     f"in RAM ({e.t.spelled()}){hint}")
-        if isinstance(target, Void) or isinstance(source, Void):
-            return
+        if isinstance(target, Void):
+            return e.py
+        if isinstance(source, Void):
+            return _rt("viewed", [e.py, _element(target)])
         s, d = source.unqualified(), target.unqualified()
         if isinstance(s, Int) and isinstance(d, Int) and s.size == d.size:
-            return
+            return e.py if s.signed == d.signed else _rt("viewed", [e.py, _element(d)])
         if s == d or (isinstance(s, Struct) and isinstance(d, Struct) and s.key == d.key):
-            return
+            return e.py
         if isinstance(s, Pointer) and isinstance(d, Pointer):
-            return
+            return e.py
         size_s = self._size(s, node) if not isinstance(s, Function) else 0
         size_d = self._size(d, node) if not isinstance(d, Function) else 0
         raise self.refuse(node, f"{what} points to {d.spelled()} ({_bytes(size_d)}), but "
@@ -1543,7 +1560,7 @@ class Translator:
 
     def x_ArrayRef(self, node: c_ast.ArrayRef) -> E:
         base = self.expr(node.name)
-        if isinstance(base.t, Array):
+        if isinstance(base.t, Array) and base.literal is None:     # ("AB"[1] is a pointer's: a literal is one)
             index = self.checked_index(base, node.subscript, node)
             name = f"{base.name}[]" if base.name else ""
             return self.loaded(ast.Subscript(base.py, index, ast.Load()), base.t.element, name,
@@ -1582,7 +1599,7 @@ class Translator:
             t = Pointer(target=sym.ctype)
             return E(_rt("Ptr", [_name(sym.py), ast.Constant(0), ast.Constant(0), ast.Constant(1),
                                  ast.Constant(target.name), ast.Constant(sym.ctype.rom),
-                                 ast.Constant(_signed_byte(sym.ctype))]), t, name=f"&{target.name}")
+                                 _element(sym.ctype)]), t, name=f"&{target.name}")
         if isinstance(target, c_ast.ArrayRef):
             base = self.expr(target.name)
             if isinstance(base.t, Array):
@@ -1591,7 +1608,7 @@ class Translator:
                 index = k.py
                 return E(_rt("Ptr", [base.py, index, ast.Constant(0), ast.Constant(base.t.length),
                                      ast.Constant(base.name), ast.Constant(base.t.rom),
-                                     ast.Constant(_signed_byte(base.t.element))]),
+                                     _element(base.t.element)]),
                          Pointer(target=base.t.element.qualified(rom=base.t.rom)), name=base.name)
             p = self.rvalue(target.name)
             k = self.rvalue(target.subscript)
@@ -1600,9 +1617,13 @@ class Translator:
             return E(_rt("advance", [p.py, k.py]), p.t, name=p.name)
         if isinstance(target, c_ast.StructRef):
             container, member, mtype = self.member(target)
+            if isinstance(mtype, Int) and mtype.width is not None:
+                raise self.refuse(node, f"&{target.field.name}: {target.field.name} is a bit-field, which has no "
+                                        "address (C forbids it: it is part of a byte); copy it into a variable and "
+                                        "pass that variable's address")
             return E(_rt("Ptr", [container, ast.Constant(member), ast.Constant(member), ast.Constant(member + 1),
                                  ast.Constant(target.field.name), ast.Constant(mtype.rom),
-                                 ast.Constant(_signed_byte(mtype))]), Pointer(target=mtype),
+                                 _element(mtype)]), Pointer(target=mtype),
                      name=target.field.name)
         if isinstance(target, c_ast.UnaryOp) and target.op == "*":
             return self.rvalue(target.expr)
@@ -1658,10 +1679,10 @@ class Translator:
 
 
 class _RomString:
-    """A string literal: its bytes in program memory (NUL included)."""
+    """A string literal: its characters in program memory (NUL included), plain chars (`element`)."""
 
-    def __init__(self, data: bytes, name: str):
-        self.data, self.name = data, name
+    def __init__(self, data: tuple[int, ...], element: tuple[int, bool, bool, str], name: str):
+        self.data, self.element, self.name = data, element, name
 
 
 class _LValue:
@@ -1734,18 +1755,8 @@ class _ItemLV(_LValue):
         super().__init__(translator, node)
         self.t = t
         self.width = t.width if isinstance(t, Int) else None
-        if not _simple(container):
-            temp = translator.temp("c")
-            self.first_container: ast.expr = ast.NamedExpr(_name(temp, True), container)
-            self.container: ast.expr = _name(temp)
-        else:
-            self.first_container = self.container = container
-        if not _simple(index):
-            temp = translator.temp("k")
-            self.first_index: ast.expr = ast.NamedExpr(_name(temp, True), index)
-            self.index: ast.expr = _name(temp)
-        else:
-            self.first_index = self.index = index
+        self.first_container, self.container = _held(translator, "c", container)
+        self.first_index, self.index = _held(translator, "k", index)
         self.used = False
 
     def _parts(self) -> tuple[ast.expr, ast.expr]:
@@ -1764,6 +1775,9 @@ class _ItemLV(_LValue):
 
 
 class _PtrLV(_LValue):
+    """An element through a pointer: the pointer and the offset each evaluated once, also where the element is both
+    loaded and stored (`p[g()] += 5`, `*q++ += 1`)."""
+
     def __init__(self, translator: Translator, pointer: ast.expr, offset: ast.expr, t: CType, node: Any):
         super().__init__(translator, node)
         self.t = t
@@ -1772,31 +1786,39 @@ class _PtrLV(_LValue):
         if t.rom or t.const:
             raise translator.refuse(node, f"this points to {'program memory' if t.rom else 'a const'}: it "
                                           "cannot be written")
-        if not _simple(pointer):
-            temp = translator.temp("p")
-            self.first: ast.expr = ast.NamedExpr(_name(temp, True), pointer)
-            self.pointer: ast.expr = _name(temp)
-        else:
-            self.first = self.pointer = pointer
-        self.offset = offset
+        self.first_pointer, self.pointer = _held(translator, "p", pointer)
+        self.first_offset, self.offset = _held(translator, "k", offset)
         self.used = False
 
-    def _pointer(self) -> ast.expr:
+    def _parts(self) -> list[ast.expr]:
         if not self.used:
             self.used = True
-            return self.first
-        return _copy(self.pointer)
+            return [self.first_pointer, self.first_offset]
+        return [_copy(self.pointer), _copy(self.offset)]
 
     def load(self) -> ast.expr:
-        return _rt("deref", [self._pointer(), _copy(self.offset)])
+        return _rt("deref", self._parts())
+
+    def _stored(self, value: ast.expr) -> ast.expr:
+        if self.used:       # `value` holds the load, which evaluates the pointer and the offset: it comes first
+            return _rt("put", [value, *self._parts()])
+        return _rt("store", [*self._parts(), value])
 
     def store(self, value: ast.expr) -> list[ast.stmt]:
-        return [ast.Expr(_rt("store", [self._pointer(), _copy(self.offset), value]))]
+        return [ast.Expr(self._stored(value))]
 
     def store_value(self, value: ast.expr) -> E:
         t = self.t
         lo, hi = (t.low, t.high) if isinstance(t, Int) else (None, None)
-        return E(_rt("store", [self._pointer(), _copy(self.offset), value]), t, lo, hi)
+        return E(self._stored(value), t, lo, hi)
+
+
+def _held(translator: Translator, kind: str, py: ast.expr) -> tuple[ast.expr, ast.expr]:
+    """`py` as first used (kept in a temporary, unless it is a name or a constant) and as used again."""
+    if _simple(py):
+        return py, py
+    temp = translator.temp(kind)
+    return ast.NamedExpr(_name(temp, True), py), _name(temp)
 
 
 class _SfrLV(_LValue):
@@ -1882,8 +1904,21 @@ def _bytes(n: int) -> str:
     return f"{n} byte{'s' if n != 1 else ''}"
 
 
-def _signed_byte(t: CType) -> bool:
-    return isinstance(t, Int) and t.size == 1 and t.signed
+def _element(t: CType) -> ast.Constant:
+    """What a memory object of elements `t` holds, for its pointers (`runtime.Element`): size, signed, an integer,
+    spelled."""
+    return ast.Constant(_element_value(t))      # type: ignore[arg-type]  # a tuple of constants is one
+
+
+def _element_value(t: CType) -> tuple[int, bool, bool, str]:
+    t = t.unqualified()
+    if isinstance(t, Int):
+        return t.size, t.signed, True, t.spelled()
+    try:
+        size = t.size
+    except (ValueError, NotImplementedError):    # an incomplete struct, a function: nothing a pointer reads
+        size = 0
+    return size, False, False, t.spelled()
 
 
 def _first_bit(sym: Sym) -> str:

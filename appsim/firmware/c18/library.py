@@ -40,18 +40,18 @@ def CANReceiveMessage(id: Ptr | None, Data: Ptr | None, DataLen: Ptr | None, Msg
         if pointer is None:
             raise CRuntimeError(f"CANReceiveMessage was given NULL for {name}: it writes there")
     assert id is not None and Data is not None and DataLen is not None and MsgFlags is not None
-    MsgFlags.set(0, 0)
+    MsgFlags.set_integer(0, 0)
     message = an738.CANReceiveMessage()
     if not message:
         return 0
-    id.set(0, message.id)
+    id.set_integer(0, message.id)
     if Data.i + len(message.data) > Data.hi:
         raise CRuntimeError(f"CANReceiveMessage writes {len(message.data)} data bytes into {Data.name}, which has "
                             f"room for {Data.hi - Data.i}: give it an array of 8 bytes (a frame carries up to 8)")
     for k, byte in enumerate(message.data):
-        Data.set(k, byte)
-    DataLen.set(0, message.length)
-    MsgFlags.set(0, message.flags)
+        Data.set_integer(k, byte)             # into a plain char array, 0xFF is the char -1
+    DataLen.set_integer(0, message.length)
+    MsgFlags.set_integer(0, message.flags)
     return 1
 
 
@@ -114,7 +114,7 @@ def strncpy(dest: Ptr | None, src: Ptr | None, n: int) -> Ptr | None:
     if dest is None or dest.i + n > dest.hi:
         raise CRuntimeError(f"strncpy writes {n} bytes into {getattr(dest, 'name', 'NULL')}, which has less room")
     for k, code in enumerate(codes):
-        dest.set(k, code)
+        dest.set_integer(k, code)
     return dest
 
 
@@ -140,22 +140,84 @@ def strncmp(a: Ptr | None, b: Ptr | None, n: int) -> int:
 
 
 def memcpy(dest: Ptr | None, src: Ptr | None, n: int) -> Ptr | None:
-    if n and (dest is None or src is None):
+    """`n` bytes: integers as their bytes, lowest first (C18's order: a long into four BYTEs), structs whole."""
+    if not n:
+        return dest
+    if dest is None or src is None:
         raise CRuntimeError("memcpy was given a NULL pointer")
-    for k in range(n):
-        assert dest is not None and src is not None
-        dest.set(k, src.get(k))
+    if dest.element[2] and src.element[2]:
+        _put_bytes(dest, _bytes(src, n))
+        return dest
+    count = _whole_elements(src, n, "memcpy")
+    if dest.element != src.element:
+        raise CRuntimeError(f"memcpy copies {src.element[3]} from {src.name} into {dest.name}, which holds "
+                            f"{dest.element[3]}: the kit's C keeps memory as objects, not bytes, and copies a struct "
+                            "only into a struct of its type")
+    for k in range(count):
+        dest.set(k, runtime.copy(src.get(k)))
     return dest
 
 
 def memset(dest: Ptr | None, value: int, n: int) -> Ptr | None:
-    for k in range(n):
-        runtime.store(dest, k, value)
+    """`n` bytes set to `value`'s low byte: each byte of an int, a struct's every member (to 0 only)."""
+    if not n:
+        return dest
+    if dest is None:
+        raise CRuntimeError("memset was given a NULL pointer")
+    if dest.element[2]:
+        _put_bytes(dest, bytes([value & 0xFF]) * n)
+        return dest
+    if value & 0xFF:
+        raise CRuntimeError(f"memset sets the bytes of {dest.name} ({dest.element[3]}) to {value & 0xFF}: the kit's C "
+                            "keeps a struct as its members, not bytes, so it clears them (0) but sets no other byte")
+    for k in range(_whole_elements(dest, n, "memset")):
+        dest.set(k, _cleared(dest.get(k)))
     return dest
 
 
 def memcmp(a: Ptr | None, b: Ptr | None, n: int) -> int:
-    return _compare([runtime.deref(a, k) & 0xFF for k in range(n)], [runtime.deref(b, k) & 0xFF for k in range(n)])
+    if not n:
+        return 0
+    if a is None or b is None:
+        raise CRuntimeError("memcmp was given a NULL pointer")
+    for p in (a, b):
+        if not p.element[2]:
+            raise CRuntimeError(f"memcmp compares the bytes of {p.name} ({p.element[3]}): the kit's C keeps a struct "
+                                "as its members, not bytes; compare the members")
+    return _compare(list(_bytes(a, n)), list(_bytes(b, n)))
+
+
+def _bytes(p: Ptr, n: int) -> bytes:
+    """The `n` bytes of memory from `p`, its integers each as its size's bytes, lowest first."""
+    size = p.element[0]
+    data = b"".join((p.get(k) & ((1 << 8 * size) - 1)).to_bytes(size, "little") for k in range(-(-n // size)))
+    return data[:n]
+
+
+def _put_bytes(p: Ptr, data: bytes) -> None:
+    """Bytes into the memory at `p`, integer by integer (one written in part keeps its other bytes)."""
+    size = p.element[0]
+    for k in range(0, len(data), size):
+        part = data[k:k + size]
+        if len(part) < size:
+            part += _bytes(p.add(k // size), size)[len(part):]
+        p.set_integer(k // size, int.from_bytes(part, "little"))
+
+
+def _whole_elements(p: Ptr, n: int, function: str) -> int:
+    size = p.element[0]
+    if not size or n % size:
+        raise CRuntimeError(f"{function} of {n} bytes covers part of a {p.element[3]} ({size} bytes) in {p.name}: "
+                            "the kit's C keeps memory as objects, not bytes; give it a whole number of them "
+                            f"(sizeof({p.element[3]}) each)")
+    return n // size
+
+
+def _cleared(value: Any) -> Any:
+    """A struct's (or array's, or pointer's) value with every byte 0: its integers 0, its pointers NULL."""
+    if isinstance(value, list):
+        return [_cleared(item) for item in value]
+    return None if value is None or isinstance(value, Ptr) else 0
 
 
 def atoi(s: Ptr | None) -> int:

@@ -1,8 +1,9 @@
 """What translated C firmware runs on besides the board: pointers into its memory objects, C's division, strings,
 and C18's sprintf, each checking what C18 lets through (an index past the end, a char where %X reads an int).
 
-Memory is objects, not bytes: an array is a list (a tuple or bytes in program memory), a struct a list of its
-members, a variable whose address is taken a list of one. A pointer is one of those objects and an index in it.
+Memory is objects, not bytes: an array is a list (a tuple in program memory), a struct a list of its members, a
+variable whose address is taken a list of one. A pointer is one of those objects, an index in it and what it holds;
+memcpy and memset see an integer's bytes, lowest first, as C18 lays them out.
 """
 from __future__ import annotations
 
@@ -12,16 +13,25 @@ from typing import Any
 from appsim.chip.polling import compared_by_slots
 from appsim.errors import CRuntimeError
 
+Element = tuple[int, bool, bool, str]     # what a memory object holds: its size in bytes, signed, an integer, spelled
+BYTE: Element = (1, False, True, "unsigned char")
+
 
 class Ptr:
     """A C pointer to element `i` of memory object `mem` (called `name` in messages), which it may reach from `lo`
     up to `hi` (excluded): a whole array, or the one variable or member it points to. `rom`: in program memory;
-    `signed`: its elements are signed chars (a string written there keeps them in range)."""
+    `element`: what the object holds (`Element`), so that what is written there keeps its type (a byte written into
+    a char array is a char) and a pointer to another type is refused or reads through a `View`."""
 
-    __slots__ = ("mem", "i", "lo", "hi", "name", "rom", "signed")
+    __slots__ = ("mem", "i", "lo", "hi", "name", "rom", "element")
 
-    def __init__(self, mem: Any, i: int, lo: int, hi: int, name: str, rom: bool = False, signed: bool = False):
-        self.mem, self.i, self.lo, self.hi, self.name, self.rom, self.signed = mem, i, lo, hi, name, rom, signed
+    def __init__(self, mem: Any, i: int, lo: int, hi: int, name: str, rom: bool = False, element: Element = BYTE):
+        self.mem, self.i, self.lo, self.hi, self.name, self.rom, self.element = mem, i, lo, hi, name, rom, element
+
+    @property
+    def reads(self) -> Element:
+        """The type an element has read through this pointer (a `View`'s own)."""
+        return self.element
 
     def get(self, k: int = 0) -> Any:
         i = self.i + k
@@ -30,6 +40,7 @@ class Ptr:
         return self.mem[i]
 
     def set(self, k: int, value: Any) -> Any:
+        """Store `value`, of the type this pointer reads (the translator made it so)."""
         i = self.i + k
         if not self.lo <= i < self.hi:
             raise CRuntimeError(self._outside(i, "write"))
@@ -39,12 +50,19 @@ class Ptr:
         self.mem[i] = value
         return value
 
+    def set_integer(self, k: int, value: int) -> int:
+        """Store any integer as C converts it to the type this pointer reads (a library's byte into a char)."""
+        return self.set(k, wrapped(value, self.reads))
+
     def add(self, k: int) -> Ptr:
         i = self.i + k
         if not self.lo <= i <= self.hi:
             raise CRuntimeError(f"pointer arithmetic left {self.name}: it points {self._where(i)}, and C only "
                                 "lets a pointer go as far as one past the end of the object it points into")
-        return Ptr(self.mem, i, self.lo, self.hi, self.name, self.rom, self.signed)
+        return self._at(i)
+
+    def _at(self, i: int) -> Ptr:
+        return Ptr(self.mem, i, self.lo, self.hi, self.name, self.rom, self.element)
 
     def same(self, other: object) -> bool:
         return isinstance(other, Ptr) and other.mem is self.mem and other.i == self.i
@@ -72,7 +90,65 @@ class Ptr:
         return f"&{self.name}[{self.i - self.lo}]"
 
 
+class View(Ptr):
+    """A pointer to integers of the other signedness than its object holds (`signed char *s = raw;` over unsigned
+    chars): what it reads is converted to its own type, what it stores back to the object's, as the same bytes."""
+
+    __slots__ = ("view",)
+
+    def __init__(self, p: Ptr, i: int, view: Element):
+        super().__init__(p.mem, i, p.lo, p.hi, p.name, p.rom, p.element)
+        self.view = view
+
+    @property
+    def reads(self) -> Element:
+        return self.view
+
+    def get(self, k: int = 0) -> Any:
+        return wrapped(super().get(k), self.view)
+
+    def set(self, k: int, value: Any) -> Any:
+        super().set(k, wrapped(value, self.element))
+        return value
+
+    def _at(self, i: int) -> Ptr:
+        return View(self, i, self.view)
+
+
+def wrapped(value: int, element: Element) -> int:
+    """`value` as C converts it to the integer type `element` (two's complement, its size's bits)."""
+    return as_integer(value, element[0], element[1])
+
+
+def as_integer(value: int, size: int, signed: bool) -> int:
+    """`value` as C converts it to an integer of `size` bytes, `signed` or not."""
+    bits = 8 * size
+    value &= (1 << bits) - 1
+    return value - (1 << bits) if signed and value >= 1 << (bits - 1) else value
+
+
+def viewed(p: Ptr | None, element: Element) -> Ptr | None:
+    """`p` converted to a pointer to `element` (through void *, or to the other signedness): the same object, read as
+    that type where the bytes mean the same (a `View`), refused where they would not (an int seen as chars)."""
+    if p is None or p.reads == element:
+        return p
+    held = p.element
+    if held == element:
+        return Ptr(p.mem, p.i, p.lo, p.hi, p.name, p.rom, held)
+    if held[0] == element[0] and held[2] and element[2]:
+        return View(p, p.i, element)
+    raise CRuntimeError(f"a pointer to {element[3]} ({_bytes(element[0])}) is made to point into {p.name}, which "
+                        f"holds {held[3]} ({_bytes(held[0])}), through a void pointer: the kit's C keeps memory as "
+                        f"objects, not bytes, and does not read one type as another. Point at it with a "
+                        f"{held[3]} *")
+
+
+def _bytes(n: int) -> str:
+    return "1 byte" if n == 1 else f"{n} bytes"
+
+
 compared_by_slots(Ptr)          # a loop that counts through a pointer (`*p++ = ADRESH`) counts
+compared_by_slots(View)
 
 
 class NoValue:
@@ -116,10 +192,34 @@ def store(p: Ptr | None, k: int, value: Any) -> Any:
     return null("a write") if p is None else p.set(k, value)
 
 
+def put(value: Any, p: Ptr | None, k: int) -> Any:
+    """`store`, for a value computed first (`*q++ += 1`: the element loaded, then the pointer it came from)."""
+    return null("a write") if p is None else p.set(k, value)
+
+
 def advance(p: Ptr | None, k: int) -> Ptr | None:
     if p is None:
         return null("arithmetic") if k else None
     return p.add(k)
+
+
+def order(p: Ptr | None, q: Ptr | None, op: str) -> int:
+    """Where `p` is against `q` (negative: before), for `p < q` and the like: C defines it within one object only."""
+    if p is None or q is None:
+        raise CRuntimeError(f"a pointer is compared by order ({op}) with a NULL pointer: C defines <, <=, >, >= only "
+                            "between pointers into one array; test a pointer with == NULL or != NULL")
+    if p.mem is not q.mem:
+        raise CRuntimeError(f"pointers into two different objects ({p.name}, {q.name}) are compared by order ({op}): "
+                            "C defines it only within one array")
+    return p.i - q.i
+
+
+def difference(p: Ptr | None, q: Ptr | None) -> int:
+    """`p - q`: how many elements apart, within one object."""
+    if p is None or q is None:
+        raise CRuntimeError("a pointer difference with a NULL pointer: C defines p - q only between pointers into "
+                            "one array")
+    return p.minus(q)
 
 
 def same(p: Ptr | None, q: Ptr | None) -> bool:
@@ -183,10 +283,9 @@ def put_string(p: Ptr | None, codes: Sequence[int], function: str) -> None:
         raise CRuntimeError(f"{function} writes into {p.name}, which is in program memory (rom)")
     if len(codes) + 1 > p.hi - p.i:
         raise _no_room(function, len(codes) + 1, p)
-    mem, i, signed = p.mem, p.i, p.signed
     for k, code in enumerate(codes):
-        mem[i + k] = code - 0x100 if signed and code >= 0x80 else code
-    mem[i + len(codes)] = 0
+        p.set_integer(k, code)
+    p.set(len(codes), 0)
 
 
 def _no_room(function: str, needed: int, p: Ptr, at_least: bool = False) -> CRuntimeError:
@@ -209,12 +308,14 @@ def bytes_at(p: Ptr | None, n: int, function: str) -> bytes:
 # ------------------------------------------------------------------ sprintf
 class Arg:
     """An argument after sprintf's format as C18 pushes it: its value, its size in bytes, its C type as written and
-    what it is (`int`, `ram` or `rom` for strings, `ptr`)."""
+    what it is (`int`, `ram` or `rom` for strings, `ptr`); `promoted`: by -Oi's default argument promotions, as ISO
+    C pushes it (a char as an int, which %c and %hhd read and convert)."""
 
-    __slots__ = ("value", "size", "spelled", "kind", "constant")
+    __slots__ = ("value", "size", "spelled", "kind", "constant", "promoted")
 
-    def __init__(self, value: Any, size: int, spelled: str, kind: str, constant: bool):
+    def __init__(self, value: Any, size: int, spelled: str, kind: str, constant: bool, promoted: bool = False):
         self.value, self.size, self.spelled, self.kind, self.constant = value, size, spelled, kind, constant
+        self.promoted = promoted
 
 
 _LENGTHS = {"hh": (1, "a char"), "h": (2, "an int"), "": (2, "an int"), "H": (3, "a short long"),
@@ -249,6 +350,8 @@ def sprintf(buf: Ptr | None, fmt: Ptr | None, *args: Arg) -> int:
         width: int | None = None
         if i < n and text[i] == 0x2A:       # '*'
             width = _int_of(next_arg("*"), 2, True, "*")
+            if width < 0:                   # a negative width is the - flag and the width
+                flags, width = flags + "-", -width
             i += 1
         else:
             digits = ""
@@ -283,14 +386,19 @@ def sprintf(buf: Ptr | None, fmt: Ptr | None, *args: Arg) -> int:
                 raise CRuntimeError(f"sprintf: {spec}: C18 knows no length {length!r} (hh, h, H, l)")
             size, what = _LENGTHS[length]
             arg = next_arg(spec)
-            value = _int_of(arg, size, conversion in "di", spec, what)
+            value = _int_of(arg, _pushed(arg, size), conversion in "di", spec, what)
+            if size < _pushed(arg, size):   # %hhd of a promoted char: read as an int, converted to a char
+                value = as_integer(value, size, conversion in "di")
             if precision is not None and buf is not None and precision + 1 > buf.hi - buf.i:
                 raise _no_room("sprintf", len(out) + precision + 1, buf, at_least=True)   # %.999999999d
             digits = _digits(value, conversion, precision)
-            sign = "-" if value < 0 else "+" if "+" in flags else " " if " " in flags else ""
+            sign = "-" if value < 0 else "" if conversion not in "di" else \
+                "+" if "+" in flags else " " if " " in flags else ""        # + and space: signed conversions only
             prefix = ""
             if "#" in flags and value:
                 prefix = {"x": "0x", "X": "0X", "o": "0", "b": "0b", "B": "0B"}.get(conversion, "")
+                if conversion == "o" and digits.startswith("0"):           # # makes the first digit a 0, if not
+                    prefix = ""
             body = sign + prefix + digits
             if width is not None and len(body) < width:
                 if "-" in flags:
@@ -302,7 +410,7 @@ def sprintf(buf: Ptr | None, fmt: Ptr | None, *args: Arg) -> int:
             out.extend(body.encode("latin-1"))
         elif conversion == "c":
             arg = next_arg(spec)
-            code = _int_of(arg, 1, False, spec, "a char")
+            code = _int_of(arg, _pushed(arg, 1), False, spec, "a char") & 0xFF
             field_ = [code]
             out.extend(_pad(field_, width, flags))
         elif conversion in "sS":
@@ -355,11 +463,12 @@ def _int_of(arg: Arg, size: int, signed: bool, spec: str, what: str = "an int") 
                f". If it is computed from chars (RxData[3] << 8), C18 computed it in {arg.size} "
                f"byte{'s' if arg.size > 1 else ''} and its high part is lost already: cast the chars before the "
                "arithmetic, ((int)RxData[3] << 8) | RxData[4]"))
-    bits = 8 * size
-    value = arg.value & ((1 << bits) - 1)
-    if signed and value >= 1 << (bits - 1):
-        value -= 1 << bits
-    return value
+    return as_integer(arg.value, size, signed)
+
+
+def _pushed(arg: Arg, size: int) -> int:
+    """The bytes a conversion reading `size` takes from the stack: an int at least, after -Oi's promotions."""
+    return max(size, 2) if arg.promoted else size
 
 
 def _digits(value: int, conversion: str, precision: int | None) -> str:
