@@ -105,6 +105,13 @@ VALUES = {
         "#include <string.h>\nstruct S { int x; unsigned char c; } a = {7, 8}, b;\nint r1;\n"
         "void main(void) { memcpy(&b, &a, sizeof a); a.x = 1; r1 = b.x; }\n",
         {"r1": 7}),
+    "initialisers with their inner braces left out": (
+        "struct N { int a[2]; int b; } x = {1, 2, 3};\nint m[2][2] = {1, 2, 3, 4};\n"
+        "struct P { int x, y; } ps[2] = {1, 2, 3, 4}, qs[2] = {{5, 6}, 7};\nint z[2][2] = {{1}, 2, 3};\n"
+        'struct S { char name[3]; int v; } s[2] = {"ab", 1, "c", 2};\nstruct P us[] = {1, 2, 3};\n'
+        "int n = sizeof us / sizeof us[0];\nvoid main(void) { }\n",
+        {"x": [[1, 2], 3], "m": [[1, 2], [3, 4]], "ps": [[1, 2], [3, 4]], "qs": [[5, 6], [7, 0]], "z": [[1, 0], [2, 3]],
+         "s": [[[97, 98, 0], 1], [[99, 0, 0], 2]], "us": [[1, 2], [3, 0]], "n": 2}),
 }
 
 
@@ -143,6 +150,12 @@ REFUSED = {
     "a ROM string in the first operand of ?:": (
         '#include <string.h>\nchar buf[8], out[8];\nunsigned char flag;\n'
         'void main(void) { strcpy(out, flag ? "rom" : buf); }\n', "program memory"),
+    "more values than the braces-left-out array holds": ("int m[2][2] = {1, 2, 3, 4, 5};\nvoid main(void) { }\n",
+                                                         "5 initial values for int.2..2., which holds 4"),
+    "++ of a void pointer": ("int y;\nvoid main(void) { void *v = &y; v++; }\n", "void pointer"),
+    "a void pointer plus one": ("int y;\nvoid *w;\nvoid main(void) { void *v = &y; w = v + 1; }\n", "void pointer"),
+    "a named bit-field of width 0": ("struct T { unsigned b:0; unsigned c:3; } t;\nvoid main(void) { }\n",
+                                     "width 0"),
 }
 
 

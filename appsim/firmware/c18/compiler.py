@@ -327,6 +327,9 @@ class Translator:
                     raise self.refuse(decl, "anonymous struct members are not supported by the kit's C")
                 members.append(Member("", mtype, width))
                 continue
+            if width == 0:
+                raise self.refuse(decl, f"{decl.name} is a bit-field of width 0: C lets only an unnamed one be 0 "
+                                        "bits wide (`unsigned : 0;`, which starts the next byte)")
             if isinstance(mtype, Struct) and mtype.members is None:
                 raise self.refuse(decl, f"struct {mtype.tag} is used before it is complete")
             if any(m.name == decl.name for m in members):
@@ -526,6 +529,10 @@ class Translator:
     def sized_by_initialiser(self, ctype: Array, decl: Any) -> Array:
         init = decl.init
         if isinstance(init, c_ast.InitList):
+            if isinstance(ctype.element, (Array, Struct)):      # its values may leave the inner braces out
+                counted, _ = self.braced(ctype, init.exprs, 0, decl)
+                assert isinstance(counted, (ast.List, ast.Tuple))
+                return replace(ctype, length=max(1, len(counted.elts)))
             return replace(ctype, length=max(1, len(init.exprs)))
         if isinstance(init, c_ast.Constant) and init.type == "string":
             return replace(ctype, length=len(_string_codes(init.value, self, init)) + 1)
@@ -563,26 +570,68 @@ class Translator:
                     ast.List([ast.Constant(v) for v in values], ast.Load())
             if not isinstance(init, c_ast.InitList):
                 raise self.refuse(init, "an array is initialised with { ... }")
-            if len(init.exprs) > t.length:
-                raise self.refuse(init, f"{len(init.exprs)} initial values for an array of {t.length}")
-            items = [self.initialiser(t.element, item, decl) for item in init.exprs]
-            items += [self.zero(t.element) for _ in range(t.length - len(items))]
-            return ast.Tuple(items, ast.Load()) if t.rom else ast.List(items, ast.Load())
+            py, used = self.braced(t, init.exprs, 0, decl)
+            if used < len(init.exprs):
+                raise self.refuse(init, f"{len(init.exprs)} initial values for an array of {t.length}" if
+                                  used == t.length else f"{len(init.exprs)} initial values for {t.spelled()}, "
+                                                        f"which holds {used} (its inner braces left out)")
+            return py
         if isinstance(t, Struct):
             assert t.members is not None
             if not isinstance(init, c_ast.InitList):      # a copy of the struct, as `=` makes
                 return _rt("copy", [self.convert(self.rvalue(init), t, init, "the initial value")])
-            if len(init.exprs) > len(t.members):
+            py, used = self.braced(t, init.exprs, 0, decl)
+            if used < len(init.exprs):
                 raise self.refuse(init, f"{len(init.exprs)} initial values for struct {t.tag}'s "
-                                        f"{len(t.members)} members")
-            items = [self.initialiser(m.ctype, item, decl) for m, item in zip(t.members, init.exprs, strict=False)]
-            items += [self.zero(m.ctype) for m in t.members[len(items):]]
-            return ast.List(items, ast.Load())
+                                        f"{len(t.members)} members" + ("" if used == len(t.members) else
+                                                                       f", which hold {used} (inner braces left out)"))
+            return py
         if isinstance(init, c_ast.InitList):
             if len(init.exprs) != 1:
                 raise self.refuse(init, "a single value is initialised with one value")
             init = init.exprs[0]
         return self.convert(self.rvalue(init), t, init, "the initial value")
+
+    def braced(self, t: Array | Struct, exprs: list[Any], at: int, decl: Any) -> tuple[ast.expr, int]:
+        """The array or struct `t` from the values `exprs[at:]` of one pair of braces, and where they stop: an
+        element or member that is an array or struct itself takes a { ... } of its own, or, with the braces left out
+        (`int m[2][2] = {1, 2, 3, 4};`), as many of these values as it has scalars (C99 6.7.8)."""
+        if isinstance(t, Array):          # (of no length yet: as many elements as the values make)
+            parts = [t.element] * t.length if t.length is not None else [t.element] * len(exprs)
+        else:
+            assert t.members is not None
+            parts = [m.ctype for m in t.members]
+        items: list[ast.expr] = []
+        for part in parts:
+            if at == len(exprs):
+                if isinstance(t, Array) and t.length is None:
+                    break
+                items.append(self.zero(part))
+                continue
+            value = exprs[at]
+            if isinstance(part, (Array, Struct)) and not isinstance(value, c_ast.InitList) \
+                    and self._scalar_value(value, part):
+                item, at = self.braced(part, exprs, at, decl)
+            else:
+                item, at = self.initialiser(part, value, decl), at + 1
+            items.append(item)
+        rom = isinstance(t, Array) and t.rom
+        return (ast.Tuple(items, ast.Load()) if rom else ast.List(items, ast.Load())), at
+
+    def _scalar_value(self, node: Any, aggregate: CType) -> bool:
+        """Whether `node` cannot initialise `aggregate` whole, as a scalar's value cannot (a string can a char array,
+        a struct-valued expression a struct: any expression the kit cannot tell without translating it can)."""
+        if isinstance(node, c_ast.Constant):        # a string initialises a char array whole, or its first one's
+            return node.type != "string" or not (isinstance(aggregate, Array) and isinstance(aggregate.element, Int)
+                                                 and aggregate.element.size == 1)
+        if isinstance(node, c_ast.UnaryOp):
+            return node.op in ("-", "+", "~", "!", "sizeof")
+        if isinstance(node, (c_ast.BinaryOp, c_ast.Cast, c_ast.TernaryOp)):
+            return True
+        if isinstance(node, c_ast.ID):
+            sym = self.lookup(node.name)
+            return sym is not None and not isinstance(sym.ctype, (Array, Struct))
+        return False
 
     # ================================================================== functions
     def function_definition(self, node: c_ast.FuncDef) -> None:
@@ -1223,6 +1272,9 @@ class Translator:
         raise self.refuse(node, f"the operator {op} is not supported by the kit's C")
 
     def pointer_arithmetic(self, op: str, a: E, b: E, node: Any) -> E:
+        for side in (a, b):
+            if isinstance(side.t, Pointer) and isinstance(side.t.target, Void):
+                raise _void_arithmetic(self, node)
         if op in ("+", "-") and isinstance(a.t, Pointer) and isinstance(b.t, Int):
             offset = b.py if op == "+" else ast.UnaryOp(ast.USub(), b.py)
             return E(_rt("advance", [a.py, offset]), a.t, name=a.name)
@@ -1657,6 +1709,8 @@ class Translator:
     def _stepped(self, target: _LValue, node: Any, step: int) -> ast.expr:
         current = target.load_once()
         if isinstance(target.t, Pointer):
+            if isinstance(target.t.target, Void):
+                raise _void_arithmetic(self, node)
             return _rt("advance", [current.py, ast.Constant(step)])
         if not isinstance(target.t, Int):
             raise self.refuse(node, f"++ and -- take a number or a pointer; this is {target.t.spelled()}")
@@ -1811,6 +1865,11 @@ class _PtrLV(_LValue):
         t = self.t
         lo, hi = (t.low, t.high) if isinstance(t, Int) else (None, None)
         return E(self._stored(value), t, lo, hi)
+
+
+def _void_arithmetic(translator: Translator, node: Any) -> _Refused:
+    return translator.refuse(node, "arithmetic on a void pointer: void has no size, so C does not say how far it "
+                                   "moves; cast it to a pointer to what it points at first")
 
 
 def _held(translator: Translator, kind: str, py: ast.expr) -> tuple[ast.expr, ast.expr]:
