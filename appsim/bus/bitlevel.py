@@ -860,7 +860,8 @@ def _moved(run: Run, was_ps: int, before: list[Station], sof_ps: int, stations: 
     """`run`, which started at `was_ps` with stations equal to these, as it happens from `sof_ps`: new outcomes, each
     with these stations' own injections."""
     shift = sof_ps - was_ps
-    injections = {now.name: (old.injections, now.injections) for old, now in zip(before, stations, strict=True)}
+    injections = {now.name: (old.injections, now.injections) for old, now in zip(before, stations, strict=True)
+                  if now.injections}
     outcomes = {}
     for name, outcome in run.outcomes.items():
         moved = Outcome(*_OUTCOME(outcome))
@@ -869,8 +870,11 @@ def _moved(run: Run, was_ps: int, before: list[Station], sof_ps: int, stations: 
             moved.lost_at_ps += shift
         if moved.flag_at_ps is not None:
             moved.flag_at_ps += shift
-        old, now = injections[name]
-        moved.fired = [now[next(i for i, was in enumerate(old) if was is fired)] for fired in outcome.fired]
+        if outcome.fired:               # (only a station with injections has any that fired)
+            old, now = injections[name]
+            moved.fired = [now[next(i for i, was in enumerate(old) if was is fired)] for fired in outcome.fired]
+        else:
+            moved.fired = []
         outcomes[name] = moved
     return Run(outcomes, run.wire,
                None if run.first_error_ps is None else run.first_error_ps + shift, run.first_error,

@@ -110,6 +110,8 @@ class _NodePort(_Port):
     loop_busy_until: int = 0
     mode_timer: Timer | None = None
     controller: Controller = field(init=False, repr=False)
+    _clock_key: tuple[object, ...] = field(default=(), init=False, repr=False)     # what `clock` was last asked
+    _clock: tuple[int, int] = field(default=(0, 0), init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.controller = self.node.controller
@@ -139,7 +141,10 @@ class _NodePort(_Port):
         return self.controller.rec
 
     def clock(self, bus_bit_ps: int) -> tuple[int, int]:
-        return _clock(self.controller.bit_timing(), self.controller.fosc, bus_bit_ps, self.rate_ok)
+        key = (self.controller.bit_timing(), self.controller.fosc, bus_bit_ps, self.rate_ok)
+        if key != self._clock_key:          # (the same timing object, mostly: compared by identity first)
+            self._clock_key, self._clock = key, _clock(*key)
+        return self._clock
 
     def own_clock(self, bus_bit_ps: int) -> tuple[int, int, int, int]:
         return oscillator_clock(self.controller.bit_timing(), self.controller.fosc, self.ppm)
